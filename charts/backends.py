@@ -1,0 +1,178 @@
+"""Math backends for formulas written once and evaluated two ways.
+
+A formula in :mod:`charts.suspension_formula` calls ``ops.sin``, ``ops.sqrt``,
+... and the arithmetic operators.  With :data:`NUMPY` it evaluates numpy arrays
+(float64 or long double, any batch shape); with :class:`HeyokaOps` it builds
+heyoka expressions that heyoka can differentiate and compile into Taylor
+integrators and compiled functions (``cfunc``).
+
+Complex numbers are carried as real pairs (:class:`Cx`), because heyoka
+expressions are real.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Cx:
+    """A complex number as a pair of reals (numpy arrays or heyoka expressions)."""
+
+    re: Any
+    im: Any
+
+    def __add__(self, other: "Cx") -> "Cx":
+        return Cx(self.re + other.re, self.im + other.im)
+
+    def __sub__(self, other: "Cx") -> "Cx":
+        return Cx(self.re - other.re, self.im - other.im)
+
+    def __mul__(self, other: "Cx") -> "Cx":
+        return Cx(self.re * other.re - self.im * other.im, self.re * other.im + self.im * other.re)
+
+    def scale(self, k: Any) -> "Cx":
+        """Multiply by the real ``k``."""
+        return Cx(self.re * k, self.im * k)
+
+    def conj(self) -> "Cx":
+        return Cx(self.re, -self.im)
+
+    def abs2(self) -> Any:
+        return self.re * self.re + self.im * self.im
+
+
+class NumpyOps:
+    """Backend on numpy arrays (float64 or long double)."""
+
+    sin = staticmethod(np.sin)
+    cos = staticmethod(np.cos)
+    sqrt = staticmethod(np.sqrt)
+    asin = staticmethod(np.arcsin)
+    atan2 = staticmethod(np.arctan2)
+
+    @staticmethod
+    def asin_clipped(x):
+        """``asin`` of ``x`` clipped to ``[-1, 1]`` (rounding can push a pole configuration past 1)."""
+        return np.arcsin(np.clip(x, -1, 1))
+
+    @staticmethod
+    def one_minus_sin(x):
+        """``1 - sin x`` without cancellation near ``x = pi/2``: ``cos^2 x / (1 + sin x)`` there."""
+        s, c = np.sin(x), np.cos(x)
+        return np.where(s > 0, c * c / (1 + np.abs(s)), 1 - s)
+
+    @staticmethod
+    def one_plus_sin(x):
+        """``1 + sin x`` without cancellation near ``x = -pi/2``."""
+        s, c = np.sin(x), np.cos(x)
+        return np.where(s < 0, c * c / (1 + np.abs(s)), 1 + s)
+
+    @staticmethod
+    def sinc(x):
+        """``sin(x)/x``, 1 at 0.  Exact division is accurate in floating point for ``x != 0``."""
+        x = np.asarray(x)
+        safe = np.where(x == 0, 1, x)
+        return np.where(x == 0, 1, np.sin(safe) / safe)
+
+    @staticmethod
+    def ratio_or_zero(a, b):
+        """``a / b``, and 0 where ``b == 0`` (a collapsed sub-sphere: any value is valid)."""
+        b = np.asarray(b)
+        safe = np.where(b == 0, 1, b)
+        return np.where(b == 0, 0, a / safe)
+
+
+NUMPY = NumpyOps()
+
+
+def _sinc_terms(fp_type: type) -> int:
+    """Number of series terms that make the ``sinc`` polynomial exact to ``fp_type`` on ``[0, pi]``.
+
+    The k-th term on ``[0, pi]`` is at most ``pi^(2k) / (2k+1)!``; we stop when it
+    falls below a tenth of the unit roundoff.
+    """
+    eps = float(np.finfo(np.float64).eps) if fp_type in (float, np.float64) else (
+        float(np.finfo(np.longdouble).eps) if fp_type is np.longdouble else 2.0 ** -112
+    )
+    k, term = 0, 1.0
+    while term > 0.1 * eps:
+        k += 1
+        term *= np.pi**2 / ((2 * k) * (2 * k + 1))
+    return k + 1
+
+
+class HeyokaOps:
+    """Backend building heyoka expressions with constants exact in ``fp_type``.
+
+    Parameters
+    ----------
+    fp_type
+        ``float``, ``numpy.longdouble`` or ``heyoka.real128``: the precision the
+        expressions will be compiled in.  Non-integer constants are created in
+        this type (heyoka turns ``x / 20.`` into ``x * 0.05`` rounded to double,
+        which would cap a real128 integration at double accuracy).
+    """
+
+    def __init__(self, fp_type: type = float) -> None:
+        import heyoka as hy
+
+        self.hy = hy
+        self.fp_type = fp_type
+        self._sinc_coeffs = [self._rational(1, (2 * k) * (2 * k + 1)) for k in range(1, _sinc_terms(fp_type) + 1)]
+
+    def _rational(self, num: int, den: int):
+        f = self.fp_type
+        return self.hy.expression(f(num) / f(den))
+
+    def sin(self, x):
+        return self.hy.sin(x)
+
+    def cos(self, x):
+        return self.hy.cos(x)
+
+    def sqrt(self, x):
+        return self.hy.sqrt(x)
+
+    def asin(self, x):
+        return self.hy.asin(x)
+
+    def atan2(self, y, x):
+        return self.hy.atan2(y, x)
+
+    def _clip1(self, x):
+        hy = self.hy
+        return hy.select(hy.gt(x, 1.0), hy.expression(1.0), hy.select(hy.lt(x, -1.0), hy.expression(-1.0), x))
+
+    def one_minus_sin(self, x):
+        """``1 - sin x = 2 sin^2(pi/4 - x/2)``: no cancellation near ``x = pi/2``."""
+        h = self.hy.sin(self.hy.pi / 4.0 - x / 2.0)
+        return 2.0 * h * h
+
+    def one_plus_sin(self, x):
+        """``1 + sin x = 2 sin^2(pi/4 + x/2)``."""
+        h = self.hy.sin(self.hy.pi / 4.0 + x / 2.0)
+        return 2.0 * h * h
+
+    def asin_clipped(self, x):
+        return self.hy.asin(self._clip1(x))
+
+    def sinc(self, x):
+        """``sin(x)/x`` as the Horner form ``1 - y/6 (1 - y/20 (1 - y/42 (...)))``, ``y = x^2``.
+
+        The plain quotient is 0/0 at ``x = 0``: its Taylor coefficients lose all
+        accuracy there and heyoka's step size collapses.  The even polynomial has
+        no such trap; its length is chosen for ``fp_type`` on ``[0, pi]``.
+        """
+        y = x * x
+        acc = self.hy.expression(1.0)
+        for c in reversed(self._sinc_coeffs):
+            acc = 1.0 - c * y * acc
+        return acc
+
+    def ratio_or_zero(self, a, b):
+        hy = self.hy
+        return hy.select(hy.eq(b, 0.0), hy.expression(0.0), a / b)

@@ -1,0 +1,106 @@
+"""Plain geometry of a closed chain of unit rods, shared by charts and linkage.
+
+Conventions: a chain of ``n`` unit rods from ``p_0 = 0`` to ``p_n = L`` (real).
+A configuration is the complex array of interior hinges ``p_1 .. p_{n-1}``
+(shape ``(..., n-1)``).  As a point of the embedding space ``R^(2(n-1))`` it is
+the interleaved real vector ``(x_1, y_1, ..., x_{n-1}, y_{n-1})``.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+def validate_chain(n: object, L: object) -> tuple[int, float]:
+    """Check that ``(n, L)`` is a chain whose configuration space is ``S^(n-2)``.
+
+    Returns ``(int(n), float(L))``.  Raises ``ValueError`` naming the bad value
+    and the valid range: ``n`` an integer ``>= 2`` and ``n - 2 < L < n`` finite.
+    """
+    if isinstance(n, bool) or not isinstance(n, numbers.Integral):
+        raise ValueError(f"n (number of rods) must be an integer >= 2, got {n!r}")
+    if n < 2:
+        raise ValueError(f"n (number of rods) must be an integer >= 2, got {n}")
+    try:
+        Lf = float(L)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ValueError(f"L must be a real number in ({n - 2}, {n}), got {L!r}") from None
+    if not math.isfinite(Lf) or not (n - 2 < Lf < n):
+        raise ValueError(
+            f"L must be finite with {n - 2} < L < {n} (the range where the configuration "
+            f"space of {n} unit rods is the sphere S^{n - 2}), got L = {L!r}"
+        )
+    return int(n), Lf
+
+
+def to_real(hinges: ArrayLike) -> NDArray:
+    """Complex hinges ``(..., n-1)`` to interleaved real points ``(..., 2(n-1))``."""
+    h = np.asarray(hinges)
+    return np.stack([h.real, h.imag], axis=-1).reshape(*h.shape[:-1], 2 * h.shape[-1])
+
+
+def to_complex(points: ArrayLike) -> NDArray:
+    """Interleaved real points ``(..., 2(n-1))`` to complex hinges ``(..., n-1)``."""
+    p = np.asarray(points)
+    if p.shape[-1] % 2:
+        raise ValueError(f"a point has an even number of real coordinates, got {p.shape[-1]}")
+    p = p.reshape(*p.shape[:-1], p.shape[-1] // 2, 2)
+    return p[..., 0] + 1j * p[..., 1]
+
+
+def rod_vectors(hinges: ArrayLike, L: float) -> NDArray:
+    """Rod vectors ``e_k = p_k - p_{k-1}``, ``k = 1..n``, shape ``(..., n)`` (complex)."""
+    h = np.asarray(hinges)
+    zeros = np.zeros((*h.shape[:-1], 1), dtype=h.dtype)
+    ends = np.full((*h.shape[:-1], 1), L, dtype=h.dtype)
+    return np.diff(np.concatenate([zeros, h, ends], axis=-1), axis=-1)
+
+
+def hinges_from_rods(rods: ArrayLike) -> NDArray:
+    """Interior hinges ``p_1 .. p_{n-1}`` (cumulative sums) from rod vectors ``e_1 .. e_n``."""
+    return np.cumsum(np.asarray(rods), axis=-1)[..., :-1]
+
+
+def closure_residual(hinges: ArrayLike, L: float) -> NDArray:
+    """``max_k | |e_k| - 1 |``: 0 for a configuration of the closed chain."""
+    return np.max(np.abs(np.abs(rod_vectors(hinges, L)) - 1.0), axis=-1)
+
+
+def validate_permutation(order: ArrayLike, n: int) -> NDArray:
+    """Check that ``order`` is a permutation of ``0 .. n-1``; return it as an int array."""
+    o = np.asarray(order)
+    if o.shape != (n,) or not np.issubdtype(o.dtype, np.integer) or sorted(o.tolist()) != list(range(n)):
+        raise ValueError(f"rod order must be a permutation of 0..{n - 1}, got {order!r}")
+    return o.astype(int)
+
+
+def relabel_matrix(order: ArrayLike) -> NDArray:
+    """Matrix ``P`` with ``p = P z + c L`` for the relabeling of :func:`relabel_hinges`.
+
+    ``z`` are the hinges of the chain whose k-th rod is rod ``order[k]``, ``p``
+    those of the chain in its own rod order; ``P`` is ``(n-1, n-1)`` with
+    entries in ``{-1, 0, 1}``.  Only ``P`` enters velocities (``L`` is fixed).
+    """
+    n = len(order)
+    cols = [relabel_hinges(np.eye(n - 1)[k], order, 0.0) for k in range(n - 1)]
+    return np.column_stack(cols).real
+
+
+def relabel_hinges(z: ArrayLike, order: ArrayLike, L: float) -> NDArray:
+    """Hinges of the chain in its own rod order from those of the relabeled chain.
+
+    The relabeled chain's k-th rod is rod ``order[k]``: ``e[order[k]] = f[k]``.
+    """
+    f = rod_vectors(z, L)
+    e = np.empty_like(f)
+    e[..., np.asarray(order)] = f
+    return hinges_from_rods(e)
+
+
+def unlabel_hinges(p: ArrayLike, order: ArrayLike, L: float) -> NDArray:
+    """Inverse of :func:`relabel_hinges`: ``f[k] = e[order[k]]``."""
+    return hinges_from_rods(rod_vectors(p, L)[..., np.asarray(order)])

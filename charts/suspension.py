@@ -1,0 +1,192 @@
+"""Suspension charts of the closed chain and the atlas of its cyclic relabelings.
+
+A :class:`SuspensionChart` is the iterated-suspension parametrisation
+(:mod:`charts.suspension_formula`) of the chain whose k-th rod is rod
+``order[k]``, with the hinges put back in the chain's own rod order.  Points
+are interleaved real vectors of the ``2(n-1)`` hinge coordinates
+(:mod:`charts.chain_geometry`); parameters are ``(phi_n, ..., phi_4, t)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from manifold.atlas import Atlas
+from manifold.chart import Chart, ChartDomainError
+
+from . import suspension_formula as formula
+from .backends import NUMPY, Cx
+from .chain_geometry import (
+    closure_residual,
+    relabel_hinges,
+    relabel_matrix,
+    to_complex,
+    to_real,
+    unlabel_hinges,
+    validate_chain,
+    validate_permutation,
+)
+from .suspension_symbolic import evaluate_jacobian
+
+#: Largest closure residual (max rod-length error) accepted by ``get_parameters``.
+CLOSURE_TOLERANCE = 1e-9
+#: Slack beyond ``|phi| = pi/2`` accepted as rounding in ``get_point``.
+LATITUDE_SLACK = 1e-12
+
+
+class SuspensionChart(Chart):
+    """Iterated-suspension chart of ``n`` unit rods pinned at ``0`` and ``L``.
+
+    Parameters
+    ----------
+    n, L
+        Number of rods (``>= 2``) and base length (``n-2 < L < n``).
+    order
+        Rod order: the chart's k-th rod is rod ``order[k]`` (default identity).
+        The chart is singular where rods ``order[0], order[1], order[2]`` point
+        the same way.
+    sheet
+        For ``n = 2`` only: which of the two points of ``S^0`` (``+1``: elbow up).
+
+    Notes
+    -----
+    ``dim = n - 2`` parameters ``(phi_n, ..., phi_4, t)`` with
+    ``phi_m in [-pi/2, pi/2]`` and ``t`` any real (period ``2 pi``).
+    ``quality(a) = min_m cos(phi_m)`` (1 for ``n <= 3``, where the chart is global).
+    """
+
+    def __init__(self, n: int, L: float, order: ArrayLike | None = None, sheet: int = 1) -> None:
+        self.n, self.L = validate_chain(n, L)
+        self.order = validate_permutation(np.arange(self.n) if order is None else order, self.n)
+        if sheet not in (1, -1):
+            raise ValueError(f"sheet must be +1 or -1, got {sheet!r}")
+        self.sheet = sheet
+        self.dim = self.n - 2
+        self.ambient_dim = 2 * (self.n - 1)
+        P = relabel_matrix(self.order)
+        #: ``(2(n-1), 2(n-1))`` real matrix mapping chart-order hinge velocities to own-order ones.
+        self.velocity_map = np.kron(P, np.eye(2))
+
+    def __repr__(self) -> str:
+        return f"SuspensionChart(n={self.n}, L={self.L!r}, order={self.order.tolist()})"
+
+    # -- parameters -----------------------------------------------------------
+    def _check_parameters(self, a: ArrayLike) -> NDArray:
+        a = np.asarray(a, dtype=float)
+        if a.ndim == 0 or a.shape[-1] != self.dim:
+            raise ChartDomainError(
+                f"chart parameters must have shape (..., {self.dim}) = (phi_{self.n}..phi_4, t), got shape {a.shape}"
+            )
+        if not np.all(np.isfinite(a)):
+            raise ChartDomainError(f"chart parameters must be finite, got {a}")
+        lat = a[..., :-1]
+        if np.any(np.abs(lat) > np.pi / 2 + LATITUDE_SLACK):
+            bad = lat[np.abs(lat) > np.pi / 2 + LATITUDE_SLACK]
+            raise ChartDomainError(f"latitudes phi_m must lie in [-pi/2, pi/2], got {bad}")
+        return a
+
+    def _columns(self, a: NDArray) -> list[NDArray]:
+        return [a[..., k] for k in range(self.dim)]
+
+    # -- the map and its inverse -------------------------------------------------
+    def hinges(self, a: ArrayLike) -> NDArray:
+        """Complex interior hinges ``(..., n-1)`` in the chain's own rod order."""
+        a = self._check_parameters(a)
+        z = formula.hinges(self._columns(a), self.L, NUMPY, self.sheet)
+        zc = np.stack([np.broadcast_to(h.re + 1j * h.im, a.shape[:-1]) for h in z], axis=-1)
+        return relabel_hinges(zc, self.order, self.L)
+
+    def get_point(self, a: ArrayLike) -> NDArray:
+        return to_real(self.hinges(a))
+
+    def get_parameters(self, p: ArrayLike) -> NDArray:
+        p = np.asarray(p, dtype=float)
+        if p.ndim == 0 or p.shape[-1] != self.ambient_dim:
+            raise ChartDomainError(f"a point has shape (..., {self.ambient_dim}), got {p.shape}")
+        if not np.all(np.isfinite(p)):
+            raise ChartDomainError(f"point must be finite, got {p}")
+        h = to_complex(p)
+        res = closure_residual(h, self.L)
+        if np.any(res > CLOSURE_TOLERANCE):
+            raise ChartDomainError(
+                f"configuration does not close: rod-length error {np.max(res):.3g} > {CLOSURE_TOLERANCE:g} "
+                f"(n = {self.n}, L = {self.L})"
+            )
+        z = unlabel_hinges(h, self.order, self.L)
+        if self.n == 2:
+            if np.any(np.sign(z.imag) == -self.sheet):
+                raise ChartDomainError(f"point is on the other sheet than this S^0 chart (sheet {self.sheet})")
+            return np.zeros((*p.shape[:-1], 0))
+        cols = formula.parameters([Cx(z[..., k].real, z[..., k].imag) for k in range(self.n - 1)], self.L, NUMPY)
+        return self.refine_parameters(np.stack(np.broadcast_arrays(*cols), axis=-1), p)
+
+    def clamp_parameters(self, a: NDArray) -> NDArray:
+        """Latitudes clipped to ``[-pi/2, pi/2]``, ``t`` wrapped to ``[-pi, pi)``."""
+        out = np.array(a, dtype=float)
+        out[..., :-1] = np.clip(out[..., :-1], -np.pi / 2, np.pi / 2)
+        out[..., -1] = (out[..., -1] + np.pi) % (2 * np.pi) - np.pi
+        return out
+
+    # -- derivatives and quality ---------------------------------------------------
+    def jacobian(self, a: ArrayLike) -> NDArray:
+        a = self._check_parameters(a)
+        if self.dim == 0:
+            return np.zeros((*a.shape[:-1], self.ambient_dim, 0))
+        _, Jz = evaluate_jacobian(self.n, self.L, a)
+        return self.velocity_map @ Jz
+
+    def quality(self, a: ArrayLike) -> NDArray:
+        a = self._check_parameters(a)
+        if self.dim <= 1:
+            return np.ones(a.shape[:-1])
+        return np.min(np.cos(a[..., :-1]), axis=-1)
+
+    def rod_angles(self, a: ArrayLike) -> NDArray:
+        """Rod angles ``theta_1 .. theta_n`` from the seed's angle form (own rod order)."""
+        a = self._check_parameters(a)
+        f = formula.rod_angles(self._columns(a), self.L, NUMPY, self.sheet)
+        f = np.stack(np.broadcast_arrays(*f), axis=-1)
+        out = np.empty_like(f)
+        out[..., self.order] = f
+        return out
+
+
+def cyclic_orders(n: int) -> list[NDArray]:
+    """The ``n`` cyclic shifts ``(s, s+1, ..., s-1)`` of the rod order."""
+    return [np.roll(np.arange(n), -s) for s in range(n)]
+
+
+class SuspensionAtlas(Atlas):
+    """Atlas of the ``n`` cyclic relabelings of the suspension chart.
+
+    Chart ``s`` starts its suspension at rod ``s``; it is singular where rods
+    ``s, s+1, s+2`` (mod ``n``) point the same way.  For ``n = 2`` the atlas is
+    the two one-point charts of ``S^0``; for ``n = 3`` every chart is global.
+
+    Parameters
+    ----------
+    n, L
+        The chain.
+    switch_threshold
+        Quality below which the active chart should be left (default 0.25,
+        well below the worst best-chart quality 0.59 measured for n = 4..8).
+    """
+
+    def __init__(self, n: int, L: float, switch_threshold: float = 0.25) -> None:
+        n, L = validate_chain(n, L)
+        if n == 2:
+            charts = [SuspensionChart(2, L, sheet=s) for s in (1, -1)]
+            ids = ["sheet+", "sheet-"]
+        else:
+            orders = cyclic_orders(n)
+            charts = [SuspensionChart(n, L, o) for o in orders]
+            ids = [f"shift{s}" for s in range(n)]
+        super().__init__(charts, ids, switch_threshold)
+        self.n, self.L = n, L
+
+    def qualities(self, p: ArrayLike) -> NDArray:
+        if self.n == 2:  # each point lies in exactly one chart of S^0
+            sheet = 1 if to_complex(np.asarray(p, dtype=float))[..., 0].imag >= 0 else -1
+            return np.array([1.0 if c.sheet == sheet else 0.0 for c in self.charts])
+        return super().qualities(p)

@@ -1,0 +1,183 @@
+"""The iterated-suspension chart of a closed chain, written once for any backend.
+
+A chain of ``m`` unit rods from ``0`` to a real base ``D`` (``m-2 < D < m``) has
+parameters ``a = (phi_m, ..., phi_4, t)`` (latitudes first, the circle angle
+last; ``m - 2`` of them).  Level ``m >= 4`` ("peel the last rod")::
+
+    alpha_m = acos((D^2 - (m-1)^2 + 1) / (2 D)),   theta = alpha_m sin(phi_m)
+    p_{m-1} = D - e^{i theta},   d = |p_{m-1}|,    phat = p_{m-1} / d
+
+and the inner chain of ``m-1`` rods from 0 to ``d`` gives the remaining hinges,
+rotated by ``phat``.  Circle level ``m = 3`` with ``s = sin t``::
+
+    alpha = acos((D^2 - 3) / (2D)),  theta = alpha s,  p_2 = D - e^{i theta}
+    nu    = alpha cos(t) sqrt(D sinc(alpha (1+s)/2) sinc(alpha (1-s)/2))
+    p_1   = p_2 / 2 + i nu p_2 / (2 |p_2|)
+
+``nu`` is the signed elbow height (``nu^2 = 4 - |p_2|^2``, sign of ``cos t``),
+smooth across ``t = +-pi/2``.  Level ``m = 2`` is ``S^0``:
+``p_1 = (D + i sheet sqrt(4 - D^2)) / 2``.
+
+Functions here take and return lists of scalars (numpy arrays or heyoka
+expressions) and :class:`~charts.backends.Cx` pairs; they know nothing of
+rod relabelings, batching or validation (see :mod:`charts.suspension`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from .backends import Cx
+
+
+class Base:
+    """A sub-chain's base: length ``D`` of ``m`` rods and its two slacks.
+
+    ``hi = m - D`` and ``lo = D - (m - 2)`` are carried down the recursion by
+    cancellation-free formulas: near a pole or near the ends of the ``L`` range
+    one of them is tiny, and recomputing it as a difference of ``O(1)`` numbers
+    would turn ``alpha`` (a square root of it) into noise.
+    """
+
+    def __init__(self, D: Any, lo: Any, hi: Any, m: int) -> None:
+        self.D, self.lo, self.hi, self.m = D, lo, hi, m
+
+    def alpha(self, ops: Any) -> Any:
+        """Half-width of the last rod's arc: ``acos((D^2 - (m-1)^2 + 1) / (2D))``.
+
+        Written as ``2 atan2(sqrt(hi (m + D - 2)), sqrt(lo (m + D)))``: ``acos``
+        near ``+-1`` would lose half the digits.
+        """
+        D, m = self.D, self.m
+        return 2 * ops.atan2(ops.sqrt(self.hi * (m - 2 + D)), ops.sqrt(self.lo * (m + D)))
+
+    def inner(self, alpha: Any, theta: Any, up: Any, dn: Any, ops: Any) -> "Base":
+        """Base of the inner chain (``m-1`` rods) after the last rod at angle ``theta``.
+
+        ``(m-1)^2 - d^2 = 4 D sin(alpha up/2) sin(alpha dn/2)`` with ``up = 1 + s``,
+        ``dn = 1 - s``, and ``d - (D - 1) = 4 D sin^2(theta/2) / (d + D - 1)``.
+        """
+        D, m = self.D, self.m
+        X = 4 * D * ops.sin(alpha * up / 2) * ops.sin(alpha * dn / 2)
+        d = ops.sqrt((m - 1) ** 2 - X)
+        h = ops.sin(theta / 2)
+        return Base(d, self.lo + 4 * D * h * h / (d + D - 1), X / (m - 1 + d), m - 1)
+
+
+def top_base(n: int, L: Any) -> Base:
+    """The whole chain's base: ``L`` with slacks ``L - (n-2)`` and ``n - L``."""
+    return Base(L, L - (n - 2), n - L, n)
+
+
+def _last_hinge(D: Any, theta: Any, ops: Any) -> Cx:
+    """``D - e^{i theta}``: the base minus the last rod."""
+    return Cx(D - ops.cos(theta), -ops.sin(theta))
+
+
+def _circle_scale(D: Any, alpha: Any, up: Any, dn: Any, ops: Any) -> Any:
+    """``alpha sqrt(D sinc(alpha up/2) sinc(alpha dn/2))``, so that ``nu = cos(t) *`` this."""
+    return alpha * ops.sqrt(D * ops.sinc(alpha * up / 2) * ops.sinc(alpha * dn / 2))
+
+
+def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1) -> list[Cx]:
+    """Interior hinges ``p_1 .. p_{n-1}`` of the suspension chart, ``n = len(a) + 2``.
+
+    Parameters
+    ----------
+    a
+        ``(phi_n, ..., phi_4, t)``; empty for ``n = 2``.
+    L
+        Base length (scalar, array or heyoka expression).
+    ops
+        Math backend (:data:`charts.backends.NUMPY` or :class:`charts.backends.HeyokaOps`).
+    sheet
+        ``+1`` or ``-1``: the point of ``S^0`` for ``n = 2`` (ignored otherwise).
+    """
+    n = len(a) + 2
+    base, frame, outer = top_base(n, L), None, []  # frame: rotation of the current sub-frame (None = identity)
+
+    def place(z: Cx) -> Cx:
+        return z if frame is None else frame * z
+
+    for phi in a[:-1]:
+        alpha, s = base.alpha(ops), ops.sin(phi)
+        theta = alpha * s
+        p = _last_hinge(base.D, theta, ops)
+        base = base.inner(alpha, theta, ops.one_plus_sin(phi), ops.one_minus_sin(phi), ops)
+        outer.append(place(p))
+        frame = place(p.scale(1 / base.D))
+    D = base.D
+    if n == 2:  # 4 - D^2 = hi (2 + D)
+        return [Cx(D / 2, sheet * ops.sqrt(base.hi * (2 + D)) / 2)]
+    t = a[-1]
+    alpha = base.alpha(ops)
+    p2 = _last_hinge(D, alpha * ops.sin(t), ops)
+    scale = _circle_scale(D, alpha, ops.one_plus_sin(t), ops.one_minus_sin(t), ops)
+    k = ops.cos(t) * scale / (2 * ops.sqrt(p2.abs2()))
+    p1 = Cx(p2.re / 2 - k * p2.im, p2.im / 2 + k * p2.re)
+    return [place(p1), place(p2)] + outer[::-1]
+
+
+def parameters(z: Sequence[Cx], L: Any, ops: Any) -> list[Any]:
+    """Inverse of :func:`hinges`: ``(phi_n, ..., phi_4, t)`` from hinges ``z_1 .. z_{n-1}``.
+
+    ``theta = arg(e_last)`` and ``phi = asin(theta / alpha)`` level by level, the
+    inner chain rotated back by ``conj(phat)``.  At the circle level ``cos t`` is
+    taken from the elbow height ``nu = 2 Im(z_1 conj(z_2)) / |z_2|`` rather
+    than from ``asin``, which loses half the digits near ``t = +-pi/2``.
+    Latitudes of a collapsed sub-sphere (``alpha = 0``: a stretched sub-chain,
+    the chart's singular set) are returned as 0.  Near the singular set the
+    result is only as good as the chart's conditioning allows; callers polish
+    it by a Newton step on the forward map.
+    """
+    n = len(z) + 1
+    base, inner, out = top_base(n, L), list(z), []
+    for _ in range(n - 3):
+        p = inner.pop()
+        alpha = base.alpha(ops)
+        theta = ops.atan2(-p.im, base.D - p.re)
+        out.append(ops.asin_clipped(ops.ratio_or_zero(theta, alpha)))
+        # (alpha +- theta) directly: no cancellation in 1 -+ s as theta -> +-alpha
+        up, dn = ops.ratio_or_zero(alpha + theta, alpha), ops.ratio_or_zero(alpha - theta, alpha)
+        base = base.inner(alpha, theta, up, dn, ops)
+        back = p.conj().scale(1 / ops.sqrt(p.abs2()))
+        inner = [back * h for h in inner]
+    if n == 2:
+        return out
+    p1, p2 = inner
+    alpha = base.alpha(ops)
+    theta = ops.atan2(-p2.im, base.D - p2.re)
+    s = ops.ratio_or_zero(theta, alpha)
+    up, dn = ops.ratio_or_zero(alpha + theta, alpha), ops.ratio_or_zero(alpha - theta, alpha)
+    nu = 2 * (p1.im * p2.re - p1.re * p2.im) / ops.sqrt(p2.abs2())
+    c = ops.ratio_or_zero(nu, _circle_scale(base.D, alpha, up, dn, ops))
+    out.append(ops.atan2(s, c))
+    return out
+
+
+def rod_angles(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1) -> list[Any]:
+    """The seed's angle form of the same chart: rod angles ``theta_1 .. theta_n``.
+
+    ``Psi^m_D(phi, rest) = (R + Psi^{m-1}_d(rest), theta)`` with
+    ``theta = alpha sin(phi)``, ``d = |D - e^{i theta}|``, ``R = arg(D - e^{i theta})``;
+    ``Psi^3_D(t) = (R + sigma beta(d), R - sigma beta(d), theta)`` with
+    ``sigma = sign(cos t)``, ``beta(d) = acos(d / 2)``; ``Psi^2_D = (sheet beta(D), -sheet beta(D))``.
+    Only for drawing on the torus and for cross-checks: ``sigma`` jumps, so it
+    is not smooth at ``t = +-pi/2``.  Numpy backend only (uses ``sign``).
+    """
+    import numpy as np
+
+    n = len(a) + 2
+    base, R, tail = top_base(n, L), 0.0, []
+    for phi in a:
+        alpha = base.alpha(ops)
+        theta = alpha * ops.sin(phi)
+        p = _last_hinge(base.D, theta, ops)
+        tail.append(R + theta)
+        R = R + ops.atan2(p.im, p.re)
+        base = base.inner(alpha, theta, ops.one_plus_sin(phi), ops.one_minus_sin(phi), ops)
+        if base.m == 2:
+            sheet = np.sign(ops.cos(phi))
+    beta = ops.atan2(ops.sqrt(base.hi * (2 + base.D)), base.D)  # acos(D/2), accurate near D = 2
+    return [R + sheet * beta, R - sheet * beta] + tail[::-1]

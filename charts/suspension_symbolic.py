@@ -1,0 +1,62 @@
+"""The suspension chart as heyoka expressions, and compiled functions of it.
+
+The expressions are symbolic in the chart parameters (variables ``a0 .. a{k-1}``,
+``k = n - 2``, in the order ``(phi_n, ..., phi_4, t)``) and in ``L``
+(runtime parameter ``par[0]``).  They give the hinges ``z`` of the chain in the
+chart's own rod order as the interleaved real vector
+``(x_1, y_1, ..., x_{n-1}, y_{n-1})``.  A rod relabeling is a constant linear
+map applied afterwards, so one compiled function per ``(n, fp_type)`` serves
+every chart and every ``L``.
+
+Compiled functions are cached in memory here and by heyoka on disk (see the
+README's note on heyoka's disk cache).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import heyoka as hy
+import numpy as np
+
+from . import suspension_formula as formula
+from .backends import HeyokaOps
+
+
+def chart_variables(n: int) -> list:
+    """The heyoka variables ``a0 .. a{n-3}`` of the chart parameters."""
+    return [hy.expression(f"a{k}") for k in range(n - 2)]
+
+
+def hinge_expressions(n: int, fp_type: type = float, L=hy.par[0]) -> list:
+    """Interleaved real hinge coordinates of the suspension chart, ``2(n-1)`` expressions."""
+    a = chart_variables(n)
+    z = formula.hinges(a, L, HeyokaOps(fp_type))
+    return [c for h in z for c in (h.re, h.im)]
+
+
+@lru_cache(maxsize=None)
+def jacobian_cfunc(n: int, fp_type: type = float):
+    """Compiled ``a -> (z(a), dz/da)`` with ``L`` as ``par[0]``.
+
+    Output: ``2(n-1)`` hinge coordinates followed by the Jacobian in row-major
+    order (``2(n-1) x (n-2)`` entries).
+    """
+    a = chart_variables(n)
+    z = hinge_expressions(n, fp_type)
+    jac = hy.diff_tensors(z, a, diff_order=1).jacobian
+    outs = list(z) + [jac[r, c] for r in range(len(z)) for c in range(len(a))]
+    return hy.cfunc(outs, a, compact_mode=True, fp_type=fp_type)
+
+
+def evaluate_jacobian(n: int, L: float, a: np.ndarray, fp_type: type = float) -> tuple[np.ndarray, np.ndarray]:
+    """Hinges ``z`` (``(..., 2(n-1))``) and ``dz/da`` (``(..., 2(n-1), n-2)``) at parameters ``a``."""
+    a = np.asarray(a, dtype=fp_type)
+    batch = a.shape[:-1]
+    flat = a.reshape(-1, n - 2).T.copy()
+    pars = np.full((1, flat.shape[1]), L, dtype=fp_type)
+    out = jacobian_cfunc(n, fp_type)(flat, pars=pars).T
+    N = 2 * (n - 1)
+    z = out[:, :N].reshape(*batch, N)
+    J = out[:, N:].reshape(*batch, N, n - 2)
+    return z, J
