@@ -60,6 +60,11 @@ class NumpyOps:
         return np.arcsin(np.clip(x, -1, 1))
 
     @staticmethod
+    def nonneg(x):
+        """``max(x, 0)``: a slack that rounding pushed below zero at a pole."""
+        return np.maximum(x, 0)
+
+    @staticmethod
     def one_minus_sin(x):
         """``1 - sin x`` without cancellation near ``x = pi/2``: ``cos^2 x / (1 + sin x)`` there."""
         s, c = np.sin(x), np.cos(x)
@@ -146,6 +151,10 @@ class HeyokaOps:
     def _clip1(self, x):
         hy = self.hy
         return hy.select(hy.gt(x, 1.0), hy.expression(1.0), hy.select(hy.lt(x, -1.0), hy.expression(-1.0), x))
+
+    def nonneg(self, x):
+        hy = self.hy
+        return hy.select(hy.lt(x, 0.0), hy.expression(0.0), x)
 
     def one_minus_sin(self, x):
         """``1 - sin x = 2 sin^2(pi/4 - x/2)``: no cancellation near ``x = pi/2``."""

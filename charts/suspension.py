@@ -129,7 +129,7 @@ class SuspensionChart(Chart):
         return out
 
     # -- derivatives and quality ---------------------------------------------------
-    def jacobian(self, a: ArrayLike) -> NDArray:
+    def raw_jacobian(self, a: ArrayLike) -> NDArray:
         a = self._check_parameters(a)
         if self.dim == 0:
             return np.zeros((*a.shape[:-1], self.ambient_dim, 0))

@@ -80,6 +80,14 @@ def _circle_scale(D: Any, alpha: Any, up: Any, dn: Any, ops: Any) -> Any:
     return alpha * ops.sqrt(D * ops.sinc(alpha * up / 2) * ops.sinc(alpha * dn / 2))
 
 
+def _up_dn(alpha: Any, theta: Any, ops: Any) -> tuple[Any, Any]:
+    """``(1 + s, 1 - s)`` for ``s = theta / alpha``, from ``alpha +- theta`` (no cancellation at a pole).
+
+    Clipped at 0: at an exact pole rounding can put ``theta`` a hair past ``alpha``.
+    """
+    return (ops.nonneg(ops.ratio_or_zero(alpha + theta, alpha)), ops.nonneg(ops.ratio_or_zero(alpha - theta, alpha)))
+
+
 def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1) -> list[Cx]:
     """Interior hinges ``p_1 .. p_{n-1}`` of the suspension chart, ``n = len(a) + 2``.
 
@@ -138,8 +146,7 @@ def parameters(z: Sequence[Cx], L: Any, ops: Any) -> list[Any]:
         alpha = base.alpha(ops)
         theta = ops.atan2(-p.im, base.D - p.re)
         out.append(ops.asin_clipped(ops.ratio_or_zero(theta, alpha)))
-        # (alpha +- theta) directly: no cancellation in 1 -+ s as theta -> +-alpha
-        up, dn = ops.ratio_or_zero(alpha + theta, alpha), ops.ratio_or_zero(alpha - theta, alpha)
+        up, dn = _up_dn(alpha, theta, ops)
         base = base.inner(alpha, theta, up, dn, ops)
         back = p.conj().scale(1 / ops.sqrt(p.abs2()))
         inner = [back * h for h in inner]
@@ -149,7 +156,7 @@ def parameters(z: Sequence[Cx], L: Any, ops: Any) -> list[Any]:
     alpha = base.alpha(ops)
     theta = ops.atan2(-p2.im, base.D - p2.re)
     s = ops.ratio_or_zero(theta, alpha)
-    up, dn = ops.ratio_or_zero(alpha + theta, alpha), ops.ratio_or_zero(alpha - theta, alpha)
+    up, dn = _up_dn(alpha, theta, ops)
     nu = 2 * (p1.im * p2.re - p1.re * p2.im) / ops.sqrt(p2.abs2())
     c = ops.ratio_or_zero(nu, _circle_scale(base.D, alpha, up, dn, ops))
     out.append(ops.atan2(s, c))

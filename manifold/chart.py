@@ -38,8 +38,21 @@ class Chart(ABC):
         """Inverse of :meth:`get_point`, shape ``(..., dim)``."""
 
     @abstractmethod
+    def raw_jacobian(self, a: ArrayLike) -> NDArray:
+        """``J = dp/da``, shape ``(..., ambient_dim, dim)``; non-finite on the singular set."""
+
     def jacobian(self, a: ArrayLike) -> NDArray:
-        """``J = dp/da``, shape ``(..., ambient_dim, dim)``."""
+        """``J = dp/da``, shape ``(..., ambient_dim, dim)``.
+
+        Raises :class:`ChartDomainError` where the chart is singular (the
+        derivative does not exist there).
+        """
+        J = self.raw_jacobian(a)
+        bad = ~np.all(np.isfinite(J), axis=(-2, -1))
+        if np.any(bad):
+            where = np.asarray(a)[bad] if np.ndim(bad) else np.asarray(a)
+            raise ChartDomainError(f"{self!r} is singular at parameters {where}: no Jacobian there")
+        return J
 
     @abstractmethod
     def quality(self, a: ArrayLike) -> NDArray:
@@ -77,7 +90,10 @@ class Chart(ABC):
         p = np.asarray(p, dtype=float)
         res = np.linalg.norm(p - self.get_point(a), axis=-1)
         for _ in range(steps):
-            step = _apply(np.linalg.pinv(self.jacobian(a)), p - self.get_point(a))
+            J = self.raw_jacobian(a)
+            regular = np.all(np.isfinite(J), axis=(-2, -1))
+            J = np.where(regular[..., None, None], J, 0.0)  # singular points: zero step
+            step = _apply(np.linalg.pinv(J), p - self.get_point(a))
             trial = self.clamp_parameters(a + step)
             res_trial = np.linalg.norm(p - self.get_point(trial), axis=-1)
             better = res_trial <= res
