@@ -59,6 +59,9 @@ class NumpyOps:
         """``asin`` of ``x`` clipped to ``[-1, 1]`` (rounding can push a pole configuration past 1)."""
         return np.arcsin(np.clip(x, -1, 1))
 
+    where = staticmethod(np.where)
+    abs = staticmethod(np.abs)
+
     @staticmethod
     def nonneg(x):
         """``max(x, 0)``: a slack that rounding pushed below zero at a pole."""
@@ -151,6 +154,13 @@ class HeyokaOps:
     def _clip1(self, x):
         hy = self.hy
         return hy.select(hy.gt(x, 1.0), hy.expression(1.0), hy.select(hy.lt(x, -1.0), hy.expression(-1.0), x))
+
+    def where(self, cond, x, y):
+        return self.hy.select(cond, x, y)
+
+    def abs(self, x):
+        hy = self.hy
+        return hy.select(hy.lt(x, 0.0), -x, x)
 
     def nonneg(self, x):
         hy = self.hy

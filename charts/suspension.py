@@ -118,7 +118,8 @@ class SuspensionChart(Chart):
             if np.any(np.sign(z.imag) == -self.sheet):
                 raise ChartDomainError(f"point is on the other sheet than this S^0 chart (sheet {self.sheet})")
             return np.zeros((*p.shape[:-1], 0))
-        cols = formula.parameters([Cx(z[..., k].real, z[..., k].imag) for k in range(self.n - 1)], self.L, NUMPY)
+        with np.errstate(divide="ignore", invalid="ignore"):  # both branches of np.where are evaluated
+            cols = formula.parameters([Cx(z[..., k].real, z[..., k].imag) for k in range(self.n - 1)], self.L, NUMPY)
         return self.refine_parameters(np.stack(np.broadcast_arrays(*cols), axis=-1), p)
 
     def clamp_parameters(self, a: NDArray) -> NDArray:

@@ -55,14 +55,16 @@ class Base:
     def inner(self, alpha: Any, theta: Any, up: Any, dn: Any, ops: Any) -> "Base":
         """Base of the inner chain (``m-1`` rods) after the last rod at angle ``theta``.
 
-        ``(m-1)^2 - d^2 = 4 D sin(alpha up/2) sin(alpha dn/2)`` with ``up = 1 + s``,
-        ``dn = 1 - s``, and ``d - (D - 1) = 4 D sin^2(theta/2) / (d + D - 1)``.
+        ``d^2 = (D-1)^2 + 4 D sin^2(theta/2)`` (a sum of positives, accurate also
+        for small ``d``), ``d - (D-1) = 4 D sin^2(theta/2) / (d + D - 1)`` and
+        ``(m-1)^2 - d^2 = 4 D sin(alpha up/2) sin(alpha dn/2)``, ``up, dn = 1 +- s``.
         """
         D, m = self.D, self.m
-        X = 4 * D * ops.sin(alpha * up / 2) * ops.sin(alpha * dn / 2)
-        d = ops.sqrt((m - 1) ** 2 - X)
         h = ops.sin(theta / 2)
-        return Base(d, self.lo + 4 * D * h * h / (d + D - 1), X / (m - 1 + d), m - 1)
+        D_minus_1 = (m - 3) + self.lo
+        d = ops.sqrt(D_minus_1 * D_minus_1 + 4 * D * h * h)
+        X = 4 * D * ops.sin(alpha * up / 2) * ops.sin(alpha * dn / 2)
+        return Base(d, self.lo + 4 * D * h * h / (d + D_minus_1), X / (m - 1 + d), m - 1)
 
 
 def top_base(n: int, L: Any) -> Base:
@@ -80,12 +82,29 @@ def _circle_scale(D: Any, alpha: Any, up: Any, dn: Any, ops: Any) -> Any:
     return alpha * ops.sqrt(D * ops.sinc(alpha * up / 2) * ops.sinc(alpha * dn / 2))
 
 
-def _up_dn(alpha: Any, theta: Any, ops: Any) -> tuple[Any, Any]:
-    """``(1 + s, 1 - s)`` for ``s = theta / alpha``, from ``alpha +- theta`` (no cancellation at a pole).
+def _rod_slack(w: Cx, ops: Any) -> Any:
+    """``|w| - Re(w)``: how much shorter a rod's projection on the chord is than the rod.
 
-    Clipped at 0: at an exact pole rounding can put ``theta`` a hair past ``alpha``.
+    ``Im(w)^2 / (|w| + Re(w))`` where the rod points along the chord (the plain
+    difference cancels there, exactly where a sub-chain is nearly stretched).
     """
-    return (ops.nonneg(ops.ratio_or_zero(alpha + theta, alpha)), ops.nonneg(ops.ratio_or_zero(alpha - theta, alpha)))
+    r = ops.sqrt(w.abs2())
+    return ops.where(w.re > 0, w.im * w.im / (r + ops.abs(w.re)), r - w.re)
+
+
+def _up_dn(base: Base, alpha: Any, theta: Any, inner_slack: Any, d: Any, ops: Any) -> tuple[Any, Any]:
+    """``(1 + s, 1 - s)``, ``s = sin(phi) = theta / alpha``, both to full relative accuracy.
+
+    The larger one is ``1 + |theta| / alpha``.  The smaller one tends to 0 at a
+    pole, where ``theta / alpha`` cancels against 1; it is taken instead from
+    the inner chain's slack ``(m-1) - d`` (measured rod by rod) through
+    ``(m-1)^2 - d^2 = 4 D sin(alpha up/2) sin(alpha dn/2)``.
+    """
+    large = 1 + ops.ratio_or_zero(ops.abs(theta), alpha)
+    X = inner_slack * (base.m - 1 + d)
+    small = 2 * ops.ratio_or_zero(ops.asin_clipped(X / (4 * base.D * ops.sin(alpha * large / 2))), alpha)
+    north = theta >= 0
+    return ops.where(north, large, small), ops.where(north, small, large)
 
 
 def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1) -> list[Cx]:
@@ -134,29 +153,34 @@ def parameters(z: Sequence[Cx], L: Any, ops: Any) -> list[Any]:
     inner chain rotated back by ``conj(phat)``.  At the circle level ``cos t`` is
     taken from the elbow height ``nu = 2 Im(z_1 conj(z_2)) / |z_2|`` rather
     than from ``asin``, which loses half the digits near ``t = +-pi/2``.
-    Latitudes of a collapsed sub-sphere (``alpha = 0``: a stretched sub-chain,
-    the chart's singular set) are returned as 0.  Near the singular set the
-    result is only as good as the chart's conditioning allows; callers polish
-    it by a Newton step on the forward map.
+    ``phi = atan2((up - dn)/2, sqrt(up dn))`` with ``up, dn = 1 +- sin(phi)`` each
+    to full relative accuracy (see :func:`_up_dn`), so a configuration a hair
+    from a pole keeps the tiny bend of its inner chain.  On a collapsed
+    sub-sphere (a stretched sub-chain: the chart's singular set) the inner
+    parameters are arbitrary.  Callers may still polish the result by a Newton
+    step on the forward map where the chart is ill-conditioned.
     """
     n = len(z) + 1
     base, inner, out = top_base(n, L), list(z), []
     for _ in range(n - 3):
-        p = inner.pop()
+        p = inner[-1]
         alpha = base.alpha(ops)
         theta = ops.atan2(-p.im, base.D - p.re)
-        out.append(ops.asin_clipped(ops.ratio_or_zero(theta, alpha)))
-        up, dn = _up_dn(alpha, theta, ops)
+        d = ops.sqrt(p.abs2())
+        back = p.conj().scale(1 / d)
+        ends = [Cx(0.0, 0.0)] + inner
+        slack = sum(_rod_slack((q - o) * back, ops) for o, q in zip(ends[:-1], ends[1:]))
+        up, dn = _up_dn(base, alpha, theta, slack, d, ops)
+        out.append(ops.atan2((up - dn) / 2, ops.sqrt(up * dn)))
         base = base.inner(alpha, theta, up, dn, ops)
-        back = p.conj().scale(1 / ops.sqrt(p.abs2()))
-        inner = [back * h for h in inner]
+        inner = [back * h for h in inner[:-1]]
     if n == 2:
         return out
     p1, p2 = inner
     alpha = base.alpha(ops)
     theta = ops.atan2(-p2.im, base.D - p2.re)
     s = ops.ratio_or_zero(theta, alpha)
-    up, dn = _up_dn(alpha, theta, ops)
+    up, dn = 1 + s, 1 - s  # enter only through sinc, whose relative error they barely change
     nu = 2 * (p1.im * p2.re - p1.re * p2.im) / ops.sqrt(p2.abs2())
     c = ops.ratio_or_zero(nu, _circle_scale(base.D, alpha, up, dn, ops))
     out.append(ops.atan2(s, c))

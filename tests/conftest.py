@@ -1,0 +1,76 @@
+"""Shared hypothesis strategies, leaning toward the hard regions of the charts.
+
+Hard regions: latitudes near the poles ``+-pi/2``, the circle angle near
+``t = +-pi/2`` (where the elbow height changes sign), and ``L`` within 1e-3 of
+both ends of ``(n-2, n)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import HealthCheck, settings
+from hypothesis import strategies as st
+
+settings.register_profile(
+    "default", deadline=None, max_examples=60, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.load_profile("default")
+
+HALF_PI = np.pi / 2
+
+
+@st.composite
+def base_lengths(draw, n: int) -> float:
+    """``L`` in ``(n-2, n)``: uniform, or within 1e-3 (down to 1e-7) of either end."""
+    kind = draw(st.sampled_from(["uniform", "low", "high"]))
+    if kind == "uniform":
+        return draw(st.floats(n - 2 + 1e-3, n - 1e-3))
+    gap = 10.0 ** draw(st.floats(-7, -3))
+    return n - 2 + gap if kind == "low" else n - gap
+
+
+@st.composite
+def latitudes(draw) -> float:
+    """A latitude in ``[-pi/2, pi/2]``: uniform, near a pole, or exactly at one."""
+    kind = draw(st.sampled_from(["uniform", "near-pole", "pole"]))
+    sign = draw(st.sampled_from([-1.0, 1.0]))
+    if kind == "uniform":
+        return draw(st.floats(-HALF_PI, HALF_PI))
+    if kind == "pole":
+        return sign * HALF_PI
+    return sign * (HALF_PI - 10.0 ** draw(st.floats(-8, -0.5)))
+
+
+@st.composite
+def circle_angles(draw) -> float:
+    """``t``: uniform on ``[-pi, pi]``, or within ``1e-12 .. 1e-2`` of ``+-pi/2``, or exactly there."""
+    kind = draw(st.sampled_from(["uniform", "near", "exact"]))
+    sign = draw(st.sampled_from([-1.0, 1.0]))
+    if kind == "uniform":
+        return draw(st.floats(-np.pi, np.pi))
+    if kind == "exact":
+        return sign * HALF_PI
+    return sign * HALF_PI + draw(st.sampled_from([-1.0, 1.0])) * 10.0 ** draw(st.floats(-12, -2))
+
+
+@st.composite
+def chart_parameters(draw, n: int) -> np.ndarray:
+    """Parameters ``(phi_n, ..., phi_4, t)`` of an ``n``-rod suspension chart."""
+    lat = [draw(latitudes()) for _ in range(n - 3)]
+    return np.array(lat + [draw(circle_angles())])
+
+
+@st.composite
+def rod_orders(draw, n: int) -> np.ndarray:
+    return np.array(draw(st.permutations(range(n))))
+
+
+def folded_conditioning(n: int, L: float) -> float:
+    """Error growth ``max(1, 1e-3 / (L - (n-2)))`` of chart derivatives near ``L = n - 2``.
+
+    There the first two rods of a chart can fold back onto each other, the
+    circle level's ``p_2`` passes within ``L - (n-2)`` of the origin, and the
+    elbow direction ``p_2 / |p_2|`` amplifies rounding by ``1 / |p_2|``.  Within
+    1e-3 of the end the plain tolerances hold; closer, they scale with this.
+    """
+    return max(1.0, 1e-3 / (L - (n - 2)))

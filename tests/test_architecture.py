@@ -1,0 +1,29 @@
+"""The layout shows the architecture: manifold <- charts <- linkage, never back."""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+FORBIDDEN = {"manifold": {"charts", "linkage"}, "charts": {"linkage"}}
+
+
+def _imported_packages(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text())
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+@pytest.mark.parametrize("package", sorted(FORBIDDEN))
+def test_lower_layers_do_not_import_higher_ones(package):
+    files = sorted((ROOT / package).glob("*.py"))
+    assert files
+    for f in files:
+        bad = _imported_packages(f) & FORBIDDEN[package]
+        assert not bad, f"{f.relative_to(ROOT)} imports {bad}"

@@ -1,0 +1,113 @@
+"""The cyclic suspension atlas: chart choice, transition maps, induced metric."""
+
+import numpy as np
+import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
+
+from charts import SuspensionAtlas, SuspensionChart
+from charts.seed_metric4 import metric4
+from linkage import Chain
+from manifold import Atlas, InducedMetric
+
+from .conftest import base_lengths, chart_parameters, folded_conditioning, rod_orders
+
+chains = st.integers(3, 8).flatmap(lambda n: st.tuples(st.just(n), base_lengths(n)))
+
+
+def _random_point(n, L, a, order):
+    """A point of the chain given by parameters of a chart with an arbitrary rod order."""
+    return SuspensionChart(n, L, order).get_point(a)
+
+
+@given(chains.flatmap(lambda nL: st.tuples(st.just(nL), chart_parameters(nL[0]), rod_orders(nL[0]))))
+def test_best_chart_is_good_everywhere_including_exact_poles(case):
+    """Points from charts with random rod orders: latitudes at or near the poles are
+    exact or near alignments of three or more rods."""
+    (n, L), a, order = case
+    atlas = SuspensionAtlas(n, L)
+    p = _random_point(n, L, a, order)
+    i = atlas.get_chart_index(p)
+    assert atlas.charts[i].quality(atlas.get_parameters(i, p)) >= 0.5
+
+
+@given(chains.flatmap(lambda nL: st.tuples(st.just(nL), chart_parameters(nL[0]), rod_orders(nL[0]))),
+       st.integers(0, 7), st.integers(0, 7))
+def test_transition_maps_round_trip_points(case, i, j):
+    (n, L), a, order = case
+    atlas = SuspensionAtlas(n, L)
+    i, j = i % n, j % n
+    ai = atlas.get_parameters(i, _random_point(n, L, a, order))
+    p = atlas.get_point(i, ai)
+    tol = 1e-12 * folded_conditioning(n, L)
+    assert np.abs(atlas.get_point(j, atlas.transition_map(i, j, ai)) - p).max() <= tol
+
+
+@given(chains.flatmap(lambda nL: st.tuples(st.just(nL), chart_parameters(nL[0]), rod_orders(nL[0]))),
+       st.integers(0, 7), st.integers(0, 7), st.integers(0, 2**32 - 1))
+def test_transition_map_diff_maps_the_embedded_velocity(case, i, j, seed):
+    (n, L), a, order = case
+    chain = Chain(n, L, hinge_masses=1.0 + np.arange(n - 1) / n, rod_densities=0.5)
+    atlas, i, j = chain.atlas(), i % n, j % n
+    metric = chain.metric(atlas)
+    p = _random_point(n, L, a, order)
+    ai, aj = atlas.get_parameters(i, p), atlas.get_parameters(j, p)
+    assume(min(atlas.charts[i].quality(ai), atlas.charts[j].quality(aj)) >= 0.05)
+    c = np.random.default_rng(seed).normal(size=n - 2)
+    cj = atlas.transition_map_diff(i, ai, c, j)
+    vi = atlas.charts[i].tangent_vector(ai, c)
+    vj = atlas.charts[j].tangent_vector(aj, cj)
+    tol = 1e-12 * folded_conditioning(n, L)
+    assert np.abs(vj - vi).max() <= tol * max(1.0, np.abs(vi).max())
+    Ei, Ej = metric.kinetic_energy(i, ai, c), metric.kinetic_energy(j, aj, cj)
+    assert abs(Ej - Ei) <= tol * Ei
+
+
+@given(st.floats(2.001, 3.999), st.floats(-1.5, 1.5), st.floats(-np.pi, np.pi))
+def test_seed_closed_form_metric_agrees_with_pullback(L, phi, t):
+    chain = Chain(4, L)
+    g = chain.metric().local_metric(0, np.array([phi, t]))
+    assert np.abs(g - metric4(phi, t, L)).max() <= 1e-10 * np.abs(g).max()
+
+
+def test_check_chart_switch_uses_the_threshold():
+    atlas = SuspensionAtlas(5, 4.0, switch_threshold=0.3)
+    assert atlas.check_chart_switch(0, np.array([np.arccos(0.29), 0.0, 0.0]))
+    assert not atlas.check_chart_switch(0, np.array([np.arccos(0.31), 0.0, 0.0]))
+    assert not atlas.check_chart_switch(0, np.array([0.0, np.arccos(0.31), 0.0]))
+    assert atlas.check_chart_switch(0, np.array([0.0, -np.arccos(0.29), 0.0]))
+
+
+def test_atlas_of_two_rods_is_two_points():
+    atlas = SuspensionAtlas(2, 1.5)
+    for i in range(2):
+        p = atlas.get_point(i, np.zeros(0))
+        assert atlas.get_chart_index(p) == i
+
+
+def test_atlas_errors():
+    atlas = SuspensionAtlas(4, 3.0)
+    with pytest.raises(IndexError, match=r"\[0, 3\]"):
+        atlas.get_point(4, [0.0, 0.0])
+    with pytest.raises(ValueError, match="switch_threshold"):
+        SuspensionAtlas(4, 3.0, switch_threshold=1.5)
+    with pytest.raises(ValueError, match="at least one chart"):
+        Atlas([])
+    with pytest.raises(ValueError, match="disagree"):
+        Atlas([SuspensionChart(4, 3.0), SuspensionChart(5, 4.0)])
+    with pytest.raises(ValueError, match="positive definite"):
+        InducedMetric(atlas, -np.eye(6))
+    with pytest.raises(ValueError, match="shape"):
+        InducedMetric(atlas, np.eye(5))
+
+
+def test_metric_norm_and_inner_are_consistent():
+    chain = Chain(5, 4.1, rod_densities=0.3)
+    metric = chain.metric()
+    a, X, Y = np.array([0.3, -0.2, 1.0]), np.array([1.0, 2.0, -1.0]), np.array([0.5, 0.0, 0.3])
+    g = metric.local_metric(2, a)
+    assert np.allclose(g, g.T) and np.all(np.linalg.eigvalsh(g) > 0)
+    assert metric.inner(2, a, X, Y) == pytest.approx(X @ g @ Y, rel=1e-14)
+    assert metric.norm(2, a, X) ** 2 == pytest.approx(2 * metric.kinetic_energy(2, a, X), rel=1e-14)
+    v = atlas_v = metric.atlas.charts[2].tangent_vector(a, X)
+    assert metric.ambient_kinetic_energy(atlas_v) == pytest.approx(chain.kinetic_energy(chain.from_point(v)), rel=1e-14)
