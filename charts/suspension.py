@@ -13,7 +13,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from manifold.atlas import Atlas
-from manifold.chart import Chart, ChartDomainError
+from manifold.chart import ChartDomainError
+from manifold.symbolic import SymbolicChart
 
 from . import suspension_formula as formula
 from .backends import NUMPY, Cx
@@ -27,7 +28,7 @@ from .chain_geometry import (
     validate_chain,
     validate_permutation,
 )
-from .suspension_symbolic import evaluate_jacobian
+from .suspension_symbolic import SuspensionFamily, evaluate_jacobian
 
 #: Largest closure residual (max rod-length error) accepted by ``get_parameters``.
 CLOSURE_TOLERANCE = 1e-9
@@ -35,7 +36,7 @@ CLOSURE_TOLERANCE = 1e-9
 LATITUDE_SLACK = 1e-12
 
 
-class SuspensionChart(Chart):
+class SuspensionChart(SymbolicChart):
     """Iterated-suspension chart of ``n`` unit rods pinned at ``0`` and ``L``.
 
     Parameters
@@ -64,9 +65,16 @@ class SuspensionChart(Chart):
         self.sheet = sheet
         self.dim = self.n - 2
         self.ambient_dim = 2 * (self.n - 1)
-        P = relabel_matrix(self.order)
-        #: ``(2(n-1), 2(n-1))`` real matrix mapping chart-order hinge velocities to own-order ones.
-        self.velocity_map = np.kron(P, np.eye(2))
+        #: ``M`` of ``p = M z + m``: chart-order hinges ``z`` to own-order hinges ``p`` (interleaved real).
+        self.linear_map = np.kron(relabel_matrix(self.order), np.eye(2))
+        if self.n >= 3:
+            self.family = SuspensionFamily(self.n)
+            self.family_parameters = np.array([self.L])
+
+    def offset(self, fp_type: type = float) -> NDArray:
+        """``m = p(z = 0)``: the relabeling's constant part, a multiple of ``L`` (exact in ``fp_type``)."""
+        unit = to_real(relabel_hinges(np.zeros(self.n - 1), self.order, 1.0)).real
+        return unit.astype(fp_type) * np.array(self.L, dtype=fp_type)
 
     def __repr__(self) -> str:
         return f"SuspensionChart(n={self.n}, L={self.L!r}, order={self.order.tolist()})"
@@ -135,7 +143,7 @@ class SuspensionChart(Chart):
         if self.dim == 0:
             return np.zeros((*a.shape[:-1], self.ambient_dim, 0))
         _, Jz = evaluate_jacobian(self.n, self.L, a)
-        return self.velocity_map @ Jz
+        return self.linear_map @ Jz
 
     def quality(self, a: ArrayLike) -> NDArray:
         a = self._check_parameters(a)

@@ -19,6 +19,8 @@ from functools import lru_cache
 import heyoka as hy
 import numpy as np
 
+from manifold.symbolic import ChartFamily
+
 from . import suspension_formula as formula
 from .backends import HeyokaOps
 
@@ -28,11 +30,42 @@ def chart_variables(n: int) -> list:
     return [hy.expression(f"a{k}") for k in range(n - 2)]
 
 
-def hinge_expressions(n: int, fp_type: type = float, L=hy.par[0]) -> list:
-    """Interleaved real hinge coordinates of the suspension chart, ``2(n-1)`` expressions."""
-    a = chart_variables(n)
+def hinge_expressions(a: list, fp_type: type = float, L=hy.par[0]) -> list:
+    """Interleaved real hinge coordinates of the suspension chart in variables ``a``: ``2(n-1)`` expressions."""
     z = formula.hinges(a, L, HeyokaOps(fp_type))
     return [c for h in z for c in (h.re, h.im)]
+
+
+class SuspensionFamily(ChartFamily):
+    """The suspension charts of ``n`` rods as a family: ``theta = (L,)``, ``z`` = hinges in chart rod order."""
+
+    block = 2
+    n_params = 1
+
+    def __init__(self, n: int) -> None:
+        if n < 3:
+            raise ValueError(f"the suspension family has parameters only for n >= 3 rods, got n = {n}")
+        self.n, self.dim, self.point_dim = n, n - 2, 2 * (n - 1)
+
+    @property
+    def key(self) -> tuple:
+        return ("suspension", self.n)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, SuspensionFamily) and other.n == self.n
+
+    def __hash__(self) -> int:
+        return hash(self.key)
+
+    def __repr__(self) -> str:
+        return f"SuspensionFamily(n={self.n})"
+
+    def point_expressions(self, a, fp_type):
+        return hinge_expressions(list(a), fp_type)
+
+    def quality_expressions(self, a):
+        """``cos(phi_m)`` for every latitude (none for ``n = 3``: the circle chart is global)."""
+        return [hy.cos(x) for x in list(a)[:-1]]
 
 
 @lru_cache(maxsize=None)
@@ -43,7 +76,7 @@ def jacobian_cfunc(n: int, fp_type: type = float):
     order (``2(n-1) x (n-2)`` entries).
     """
     a = chart_variables(n)
-    z = hinge_expressions(n, fp_type)
+    z = hinge_expressions(a, fp_type)
     jac = hy.diff_tensors(z, a, diff_order=1).jacobian
     outs = list(z) + [jac[r, c] for r in range(len(z)) for c in range(len(a))]
     return hy.cfunc(outs, a, compact_mode=True, fp_type=fp_type)

@@ -1,0 +1,288 @@
+"""Geodesics through an atlas: Taylor integration in the active chart, switching on events.
+
+:func:`solve_chart_exp_ode` integrates the geodesic equations of an
+:class:`~manifold.metric.InducedMetric` whose charts are
+:class:`~manifold.symbolic.SymbolicChart` s of one family.  In the active chart
+``i`` heyoka's Taylor integrator runs until ``t_final`` or until a terminal
+event ``quality_i(a) = q_out`` (before the chart's singular set).  At the event
+the point ``p`` and embedded velocity ``v = J c`` are computed, the best chart
+``j`` is chosen (``atlas.get_chart_index``), ``a_j`` is found by the closed-form
+inverse polished by Newton steps in the working precision, and
+``c_j = g_j^{-1} J_j^T K v`` (exact for the tangent ``v``, so energy is
+unchanged).  The best chart has quality far above ``q_out`` (hysteresis), so
+switches cannot chatter.
+"""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass, field
+
+import heyoka as hy
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from . import geodesic_system as gs
+from .metric import InducedMetric
+from .symbolic import SymbolicChart
+
+
+@dataclass(frozen=True)
+class ChartSwitch:
+    """One chart switch: when, from which chart to which, and the qualities there."""
+
+    time: float
+    from_chart: int
+    to_chart: int
+    quality_from: float
+    quality_to: float
+
+
+@dataclass
+class Segment:
+    """A stretch of the solution integrated in one chart."""
+
+    chart: int
+    t_start: float
+    t_end: float
+    n_steps: int
+    output: object | None  # heyoka continuous output (None when dense=False)
+
+
+class _ChartNumerics:
+    """Chart ``i`` in the working precision: its affine map and the compiled transfer function."""
+
+    def __init__(self, chart: SymbolicChart, K: NDArray, q_out: float, fp_type: type) -> None:
+        self.fp, self.k, self.N = fp_type, chart.dim, chart.ambient_dim
+        self.M = chart.linear_map.astype(fp_type)
+        self.M_inv = chart.inverse_linear_map().astype(fp_type)
+        self.m = chart.offset(fp_type)
+        self.pars = gs.layout(chart.family).pack(chart.family_parameters, chart.core_metric(K), q_out, fp_type)
+        self.cf = gs.transfer_cfunc(chart.family, fp_type)
+
+    def _eval(self, a: NDArray, c: NDArray, u: NDArray) -> NDArray:
+        """Batched transfer function: ``a``, ``c`` of shape ``(k, B)``, ``u`` of shape ``(N, B)``."""
+        args = np.concatenate([a, c, u]).astype(self.fp)
+        pars = self.pars[: self.cf.nparams, None]  # the cfunc does not use q_out
+        return self.cf(args, pars=np.repeat(pars, args.shape[1], axis=1))
+
+    def point_velocity_energy(self, a: NDArray, c: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        """``p = M z(a) + m``, ``v = M J c`` and ``E`` for batches ``(k, B)``."""
+        out = self._eval(a, c, np.zeros((self.N, a.shape[1]), dtype=self.fp))
+        z, Jc, E = out[: self.N], out[self.N : 2 * self.N], out[-1]
+        return (self.M @ z).T + self.m, (self.M @ Jc).T, E
+
+    def coefficients(self, a: NDArray, v: NDArray) -> NDArray:
+        """``c = g^{-1} J^T K v``: K-orthogonal tangent coefficients of embedded ``v``."""
+        out = self._eval(a[:, None], np.zeros((self.k, 1), self.fp), (self.M_inv @ v)[:, None])
+        return out[2 * self.N : 2 * self.N + self.k, 0]
+
+    def polish(self, a: NDArray, p: NDArray, steps: int) -> NDArray:
+        """Gauss-Newton steps ``a += g^{-1} J^T W (z* - z(a))`` toward ``p`` in the working precision."""
+        target = self.M_inv @ (p - self.m)
+        for _ in range(steps):
+            z = self._eval(a[:, None], np.zeros((self.k, 1), self.fp), np.zeros((self.N, 1), self.fp))[: self.N, 0]
+            out = self._eval(a[:, None], np.zeros((self.k, 1), self.fp), (target - z)[:, None])
+            a = a + out[2 * self.N : 2 * self.N + self.k, 0]
+        return a
+
+
+@dataclass
+class GeodesicSolution:
+    """A geodesic stitched from chart segments.
+
+    Attributes
+    ----------
+    segments
+        :class:`Segment` s in integration order.
+    switches
+        :class:`ChartSwitch` log.
+    t_span
+        ``(t0, t_final)`` (``t_final < t0`` for backward integration).
+    energy_times, energies
+        Kinetic energy ``1/2 c^T g c`` at every integrator step (``dense=True``)
+        or at every switch and the end (``dense=False``).
+    fp_type
+        Floating type of the integration.
+    """
+
+    metric: InducedMetric
+    fp_type: type
+    t_span: tuple[float, float]
+    segments: list[Segment] = field(default_factory=list)
+    switches: list[ChartSwitch] = field(default_factory=list)
+    energy_times: list = field(default_factory=list)
+    energies: list = field(default_factory=list)
+    _numerics: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def n_switches(self) -> int:
+        return len(self.switches)
+
+    @property
+    def n_steps(self) -> int:
+        return sum(s.n_steps for s in self.segments)
+
+    @property
+    def relative_energy_error(self) -> float:
+        """``max_t |E(t) - E(t0)| / E(t0)`` over the recorded energies."""
+        E = np.array(self.energies, dtype=self.fp_type)
+        return float(np.max(np.abs(E - E[0])) / E[0]) if E[0] != 0 else float(np.max(np.abs(E)))
+
+    def _segment_index(self, t: float) -> int:
+        t0, t1 = self.t_span
+        lo, hi = min(t0, t1), max(t0, t1)
+        if not (lo <= t <= hi) or not np.isfinite(t):
+            raise ValueError(f"t = {t!r} is outside the solution's time span [{lo}, {hi}]")
+        if self.segments[0].output is None:
+            raise ValueError("the solution was computed with dense=False: no continuous output")
+        ends = [float(s.t_end) if t1 >= t0 else -float(s.t_end) for s in self.segments]
+        return min(bisect.bisect_left(ends, t if t1 >= t0 else -t), len(self.segments) - 1)
+
+    def parameters(self, t: float) -> tuple[int, NDArray, NDArray]:
+        """``(chart index, a, c)`` at time ``t`` from the continuous output."""
+        seg = self.segments[self._segment_index(t)]
+        state = np.asarray(seg.output(self.fp_type(t)))
+        k = self.metric.atlas.dim
+        return seg.chart, state[:k], state[k:]
+
+    def __call__(self, t: ArrayLike) -> tuple[NDArray, NDArray]:
+        """Point ``p(t)`` and embedded velocity ``v(t)`` (shape ``(..., N)``) in the working precision."""
+        ts = np.atleast_1d(np.asarray(t, dtype=float))
+        ps, vs = [], []
+        for tk in ts.ravel():
+            i, a, c = self.parameters(tk)
+            p, v, _ = self._numerics[i].point_velocity_energy(a[:, None], c[:, None])
+            ps.append(p[0])
+            vs.append(v[0])
+        shape = np.shape(t) + (self.metric.atlas.ambient_dim,)
+        return np.array(ps).reshape(shape), np.array(vs).reshape(shape)
+
+
+def solve_chart_exp_ode(
+    metric: InducedMetric,
+    p0: ArrayLike,
+    v0: ArrayLike,
+    t_final: float,
+    *,
+    fp_type: type = float,
+    tol: float | None = None,
+    q_out: float | None = None,
+    form: str = "embedded",
+    project_velocity: bool = False,
+    tangent_tol: float = 1e-9,
+    dense: bool = True,
+    max_switches: int = 1_000_000,
+) -> GeodesicSolution:
+    """Integrate the geodesic from point ``p0`` with velocity ``v0`` for ``0 <= t <= t_final``.
+
+    Parameters
+    ----------
+    metric
+        Induced metric on an atlas of :class:`~manifold.symbolic.SymbolicChart` s of one family.
+    p0, v0
+        Start point and embedded velocity (shape ``(N,)``, ``N = atlas.ambient_dim``).
+    t_final
+        Final time, finite; negative integrates backward.
+    fp_type
+        ``float`` (default), ``numpy.longdouble`` or ``heyoka.real128``.
+    tol
+        Taylor integrator tolerance; default the unit roundoff of ``fp_type``.
+    q_out
+        Switch threshold on chart quality; default ``atlas.switch_threshold``.
+    form
+        ``"embedded"`` (default) or ``"christoffel"`` (cross-check).
+    project_velocity
+        If true, replace ``v0`` by its K-orthogonal projection on the tangent
+        space; otherwise a ``v0`` off the tangent space by more than
+        ``tangent_tol * |v0|`` raises ``ValueError``.
+    dense
+        Keep heyoka's continuous output (needed to evaluate the solution at
+        any ``t``; about ``(order+1) * 2 dim`` numbers per step).
+    max_switches
+        Safety limit on the number of chart switches.
+    """
+    atlas = metric.atlas
+    if atlas.dim == 0:
+        raise ValueError("a 0-dimensional manifold has no geodesic motion")
+    if not all(isinstance(c, SymbolicChart) for c in atlas.charts):
+        raise TypeError("solve_chart_exp_ode needs SymbolicChart charts (heyoka expressions of the chart map)")
+    t_final = float(t_final)
+    if not np.isfinite(t_final):
+        raise ValueError(f"t_final must be finite, got {t_final!r}")
+    q_out = atlas.switch_threshold if q_out is None else float(q_out)
+    if not 0 < q_out < 1:
+        raise ValueError(f"q_out must lie in (0, 1), got {q_out!r}")
+    p0, v0 = _as_vector(p0, "p0", atlas.ambient_dim), _as_vector(v0, "v0", atlas.ambient_dim)
+
+    sol = GeodesicSolution(metric, fp_type, (0.0, t_final))
+    num = sol._numerics
+    for i, chart in enumerate(atlas.charts):
+        num[i] = _ChartNumerics(chart, metric.K, q_out, fp_type)
+    ta = gs.integrator(atlas.charts[0].family, fp_type, tol, form)
+    polish_steps = 0 if fp_type is float else 2
+
+    i = atlas.get_chart_index(p0)  # validates p0 (closure, shape, finiteness)
+    a = num[i].polish(atlas.get_parameters(i, p0).astype(fp_type), p0.astype(fp_type), polish_steps)
+    c = num[i].coefficients(a, v0.astype(fp_type))
+    _, v_tan, E0 = num[i].point_velocity_energy(a[:, None], c[:, None])
+    v_tan = v_tan[0]
+    off = float(np.max(np.abs((v_tan - v0.astype(fp_type)).astype(float))))
+    if off > tangent_tol * max(1.0, float(np.max(np.abs(v0)))) and not project_velocity:
+        raise ValueError(
+            f"v0 is not tangent at p0: it is {off:.3g} away from the tangent space "
+            f"(allowed {tangent_tol:g} * max(1, |v0|)); pass project_velocity=True to project it"
+        )
+    t = fp_type(0.0)
+    sol.energy_times.append(t)
+    sol.energies.append(E0[0])
+    while True:
+        ta.state[:] = np.concatenate([a, c])
+        ta.time = t
+        ta.pars[:] = num[i].pars[: len(ta.pars)]
+        ta.reset_cooldowns()
+        res = ta.propagate_until(fp_type(t_final), c_output=dense)
+        outcome, n_steps, cout = res[0], res[3], res[4]
+        sol.segments.append(Segment(i, t, ta.time, n_steps, cout))
+        _record_energy(sol, num[i], cout, ta, atlas.dim, dense)
+        if outcome == hy.taylor_outcome.time_limit:
+            return sol
+        if outcome.value >= 0:
+            raise RuntimeError(f"integration failed at t = {ta.time}: {outcome} (chart {atlas.ids[i]})")
+        if len(sol.switches) >= max_switches:
+            raise RuntimeError(f"more than max_switches = {max_switches} chart switches by t = {ta.time}")
+        t = ta.time
+        state = np.array(ta.state)
+        p, v, _ = num[i].point_velocity_energy(state[: atlas.dim, None], state[atlas.dim :, None])
+        p, v = p[0], v[0]
+        q_from = float(atlas.charts[i].quality(state[: atlas.dim].astype(float)))
+        j = atlas.get_chart_index(p.astype(float))
+        a = num[j].polish(atlas.get_parameters(j, p.astype(float)).astype(fp_type), p, polish_steps)
+        q_to = float(atlas.charts[j].quality(a.astype(float)))
+        if q_to <= q_out:
+            raise RuntimeError(f"no chart of quality above q_out = {q_out} at t = {t} (best {q_to:.3g})")
+        c = num[j].coefficients(a, v)
+        sol.switches.append(ChartSwitch(float(t), i, j, q_from, q_to))
+        i = j
+
+
+def _record_energy(sol: GeodesicSolution, num: _ChartNumerics, cout, ta, k: int, dense: bool) -> None:
+    if dense and cout is not None:
+        times = np.asarray(cout.times)
+        states = np.asarray(cout(times)).reshape(len(times), -1).T
+    else:
+        times = np.array([ta.time])
+        states = np.asarray(ta.state)[:, None]
+    _, _, E = num.point_velocity_energy(states[:k], states[k:])
+    start = 1 if dense else 0  # a dense segment's first time is already recorded
+    sol.energy_times.extend(times[start:])
+    sol.energies.extend(np.atleast_1d(E)[start:])
+
+
+def _as_vector(x: ArrayLike, name: str, N: int) -> NDArray:
+    x = np.asarray(x, dtype=float)
+    if x.shape != (N,):
+        raise ValueError(f"{name} must have shape ({N},), got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"{name} must be finite, got {x}")
+    return x
