@@ -46,6 +46,7 @@ class SuspensionFamily(ChartFamily):
         if n < 3:
             raise ValueError(f"the suspension family has parameters only for n >= 3 rods, got n = {n}")
         self.n, self.dim, self.point_dim = n, n - 2, 2 * (n - 1)
+        self.periodic = (self.dim - 1,)  # the circle angle t
 
     @property
     def key(self) -> tuple:

@@ -115,6 +115,14 @@ class GeodesicSolution:
     energies: list = field(default_factory=list)
     _numerics: dict = field(default_factory=dict, repr=False)
 
+    final_state: tuple | None = None  # (chart index, a, c) at t_final
+
+    def end_state(self) -> tuple[NDArray, NDArray]:
+        """Point and embedded velocity at ``t_final`` (available also with ``dense=False``)."""
+        i, a, c = self.final_state
+        p, v, _ = self._numerics[i].point_velocity_energy(a[:, None], c[:, None])
+        return p[0], v[0]
+
     @property
     def n_switches(self) -> int:
         return len(self.switches)
@@ -173,6 +181,7 @@ def solve_chart_exp_ode(
     tangent_tol: float = 1e-9,
     dense: bool = True,
     max_switches: int = 1_000_000,
+    chart: int | None = None,
 ) -> GeodesicSolution:
     """Integrate the geodesic from point ``p0`` with velocity ``v0`` for ``0 <= t <= t_final``.
 
@@ -181,7 +190,8 @@ def solve_chart_exp_ode(
     metric
         Induced metric on an atlas of :class:`~manifold.symbolic.SymbolicChart` s of one family.
     p0, v0
-        Start point and embedded velocity (shape ``(N,)``, ``N = atlas.ambient_dim``).
+        Start point and embedded velocity (shape ``(N,)``, ``N = atlas.ambient_dim``);
+        with ``chart`` given, chart parameters ``a`` and coefficients ``c`` instead.
     t_final
         Final time, finite; negative integrates backward.
     fp_type
@@ -201,6 +211,13 @@ def solve_chart_exp_ode(
         any ``t``; about ``(order+1) * 2 dim`` numbers per step).
     max_switches
         Safety limit on the number of chart switches.
+    chart
+        Index of the chart in which ``(p0, v0)`` are given as ``(a, c)``.
+
+    Returns
+    -------
+    GeodesicSolution
+        Segments, switch log, energies, and a callable ``t -> (p, v)``.
     """
     atlas = metric.atlas
     if atlas.dim == 0:
@@ -213,14 +230,20 @@ def solve_chart_exp_ode(
     q_out = atlas.switch_threshold if q_out is None else float(q_out)
     if not 0 < q_out < 1:
         raise ValueError(f"q_out must lie in (0, 1), got {q_out!r}")
+    if chart is not None:
+        a0, c0 = _as_vector(p0, "a", atlas.dim), _as_vector(v0, "c", atlas.dim)
+        p0, v0 = atlas.get_point(chart, a0), atlas.charts[chart].tangent_vector(a0, c0)
     p0, v0 = _as_vector(p0, "p0", atlas.ambient_dim), _as_vector(v0, "v0", atlas.ambient_dim)
 
     sol = GeodesicSolution(metric, fp_type, (0.0, t_final))
     num = sol._numerics
     for i, chart in enumerate(atlas.charts):
         num[i] = _ChartNumerics(chart, metric.K, q_out, fp_type)
-    ta = gs.integrator(atlas.charts[0].family, fp_type, tol, form)
+    family = atlas.charts[0].family
+    ta = gs.integrator(family, fp_type, tol, form)
     polish_steps = 0 if fp_type is float else 2
+    n_quality = len(family.quality_expressions(gs.chart_variables(family.dim)))
+    two_pi = 8 * np.arctan(np.array(1, dtype=fp_type))  # 2 pi exact to fp_type
 
     i = atlas.get_chart_index(p0)  # validates p0 (closure, shape, finiteness)
     a = num[i].polish(atlas.get_parameters(i, p0).astype(fp_type), p0.astype(fp_type), polish_steps)
@@ -240,30 +263,44 @@ def solve_chart_exp_ode(
         ta.state[:] = np.concatenate([a, c])
         ta.time = t
         ta.pars[:] = num[i].pars[: len(ta.pars)]
-        ta.reset_cooldowns()
+        if ta.with_events:  # a global chart family has no switch events
+            ta.reset_cooldowns()
         res = ta.propagate_until(fp_type(t_final), c_output=dense)
         outcome, n_steps, cout = res[0], res[3], res[4]
         sol.segments.append(Segment(i, t, ta.time, n_steps, cout))
         _record_energy(sol, num[i], cout, ta, atlas.dim, dense)
         if outcome == hy.taylor_outcome.time_limit:
+            state = np.array(ta.state)
+            sol.final_state = (i, state[: atlas.dim], state[atlas.dim :])
             return sol
         if outcome.value >= 0:
             raise RuntimeError(f"integration failed at t = {ta.time}: {outcome} (chart {atlas.ids[i]})")
-        if len(sol.switches) >= max_switches:
-            raise RuntimeError(f"more than max_switches = {max_switches} chart switches by t = {ta.time}")
         t = ta.time
         state = np.array(ta.state)
-        p, v, _ = num[i].point_velocity_energy(state[: atlas.dim, None], state[atlas.dim :, None])
-        p, v = p[0], v[0]
-        q_from = float(atlas.charts[i].quality(state[: atlas.dim].astype(float)))
-        j = atlas.get_chart_index(p.astype(float))
-        a = num[j].polish(atlas.get_parameters(j, p.astype(float)).astype(fp_type), p, polish_steps)
-        q_to = float(atlas.charts[j].quality(a.astype(float)))
-        if q_to <= q_out:
-            raise RuntimeError(f"no chart of quality above q_out = {q_out} at t = {t} (best {q_to:.3g})")
-        c = num[j].coefficients(a, v)
-        sol.switches.append(ChartSwitch(float(t), i, j, q_from, q_to))
-        i = j
+        a, c = state[: atlas.dim], state[atlas.dim :]
+        event = -outcome.value - 1
+        if event >= n_quality:  # a periodic parameter left [-pi, pi]: wrap it, same chart
+            k = family.periodic[(event - n_quality) // 2]
+            a[k] += -two_pi if (event - n_quality) % 2 == 0 else two_pi
+            continue
+        if len(sol.switches) >= max_switches:
+            raise RuntimeError(f"more than max_switches = {max_switches} chart switches by t = {t}")
+        i, a, c = _switch(sol, i, a, c, t, q_out, polish_steps)
+
+
+def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t, q_out: float, polish_steps: int):
+    """Move the state ``(a, c)`` of chart ``i`` to the best chart; log the switch."""
+    atlas, num = sol.metric.atlas, sol._numerics
+    p, v, _ = num[i].point_velocity_energy(a[:, None], c[:, None])
+    p, v = p[0], v[0]
+    q_from = float(atlas.charts[i].quality(a.astype(float)))
+    j = atlas.get_chart_index(p.astype(float))
+    a_j = num[j].polish(atlas.get_parameters(j, p.astype(float)).astype(sol.fp_type), p, polish_steps)
+    q_to = float(atlas.charts[j].quality(a_j.astype(float)))
+    if q_to <= q_out:
+        raise RuntimeError(f"no chart of quality above q_out = {q_out} at t = {t} (best {q_to:.3g})")
+    sol.switches.append(ChartSwitch(float(t), i, j, q_from, q_to))
+    return j, a_j, num[j].coefficients(a_j, v)
 
 
 def _record_energy(sol: GeodesicSolution, num: _ChartNumerics, cout, ta, k: int, dense: bool) -> None:

@@ -75,8 +75,13 @@ def layout(family: ChartFamily) -> Layout:
     return Layout(family.dim, family.n_params, family.point_dim // family.block)
 
 
+def chart_variables(k: int) -> list:
+    """The heyoka variables ``a0 .. a{k-1}`` of chart parameters."""
+    return [hy.expression(f"a{i}") for i in range(k)]
+
+
 def _variables(k: int) -> tuple[list, list]:
-    return [hy.expression(f"a{i}") for i in range(k)], [hy.expression(f"c{i}") for i in range(k)]
+    return chart_variables(k), [hy.expression(f"c{i}") for i in range(k)]
 
 
 class _Pieces:
@@ -147,13 +152,22 @@ def geodesic_equations(family: ChartFamily, fp_type: type = float, form: str = "
 
 
 def switch_events(family: ChartFamily, fp_type: type) -> list:
-    """Terminal events ``quality_m(a) - q_out``, triggered while decreasing."""
+    """Terminal events: ``quality_m(a) - q_out`` (decreasing), then ``a_p -+ pi`` for periodic ``a_p``.
+
+    The first ``len(family.quality_expressions(a))`` events ask for a chart
+    switch; each periodic parameter ``a_p`` then has two: leaving ``[-pi, pi]``
+    upward and downward (a wrap by ``-+ 2 pi``, same chart).
+    """
     P = _pieces(family, fp_type)
     q_out = hy.par[layout(family).q_out_index]
-    return [
-        hy.t_event(e - q_out, direction=hy.event_direction.negative, fp_type=fp_type)
-        for e in family.quality_expressions(P.a)
-    ]
+    up, down = hy.event_direction.positive, hy.event_direction.negative
+    events = [hy.t_event(e - q_out, direction=down, fp_type=fp_type) for e in family.quality_expressions(P.a)]
+    for i in family.periodic:
+        events += [
+            hy.t_event(P.a[i] - hy.pi, direction=up, fp_type=fp_type),
+            hy.t_event(P.a[i] + hy.pi, direction=down, fp_type=fp_type),
+        ]
+    return events
 
 
 @lru_cache(maxsize=None)

@@ -34,6 +34,10 @@ class ChartFamily(ABC):
         hinges); the ambient metric must be ``B (x) I_block``.
     n_params
         Number of family parameters ``theta``.
+    periodic
+        Indices of ``2 pi``-periodic parameters.  The integrator wraps them into
+        ``[-pi, pi]``: heyoka's error control is relative to the state's size,
+        so an angle left to grow to ``O(1000)`` would cost three digits.
     key
         Hashable identity used to cache compiled systems.
     """
@@ -42,6 +46,7 @@ class ChartFamily(ABC):
     point_dim: int
     block: int
     n_params: int
+    periodic: tuple[int, ...] = ()
 
     @property
     @abstractmethod

@@ -65,9 +65,12 @@ def test_transition_map_diff_maps_the_embedded_velocity(case, i, j, seed):
 
 @given(st.floats(2.001, 3.999), st.floats(-1.5, 1.5), st.floats(-np.pi, np.pi))
 def test_seed_closed_form_metric_agrees_with_pullback(L, phi, t):
+    """Agreement to 1e-10, except that near t = +-pi/2 the seed's own elbow height
+    ``cos t sqrt((4 - |p_2|^2) / cos^2 t)`` is a 0/0 ratio and loses ~eps / cos^2 t."""
     chain = Chain(4, L)
     g = chain.metric().local_metric(0, np.array([phi, t]))
-    assert np.abs(g - metric4(phi, t, L)).max() <= 1e-10 * np.abs(g).max()
+    seed_error = 1e-15 / max(np.cos(t) ** 2, 1e-12)
+    assert np.abs(g - metric4(phi, t, L)).max() <= max(1e-10, seed_error) * np.abs(g).max()
 
 
 def test_check_chart_switch_uses_the_threshold():

@@ -1,0 +1,205 @@
+"""Geodesic motion through the atlas: energy, switching, independent forms, periodicity."""
+
+import heyoka as hy
+import numpy as np
+import pytest
+from scipy.integrate import quad
+from scipy.optimize import brentq
+
+from charts import SuspensionChart
+from linkage import Chain
+from linkage.ambient import integrate_ambient
+from linkage.motion import free_motion
+from manifold.geodesic_solver import solve_chart_exp_ode
+
+HALF_PI = np.pi / 2
+
+
+def start(chain: Chain, a, c, chart=0):
+    """Point and tangent velocity from chart parameters and coefficients."""
+    atlas = chain.atlas()
+    return atlas.get_point(chart, np.asarray(a, float)), atlas.charts[chart].tangent_vector(np.asarray(a, float), np.asarray(c, float))
+
+
+@pytest.mark.parametrize("n, L, T", [(4, 2.6, 700.0), (5, 3.3, 650.0), (6, 5.5, 150.0)])
+def test_energy_is_conserved_across_a_hundred_switches(n, L, T):
+    chain = Chain(n, L, rod_densities=0.2)
+    rng = np.random.default_rng(n)
+    a0 = np.append(rng.uniform(-1, 1, n - 3), 0.4)
+    p0, v0 = start(chain, a0, rng.normal(size=n - 2))
+    speed = np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))
+    # q_out = 0.45 (still below the atlas's worst best quality 0.6) switches often
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0 * (3.0 / speed), T, dense=False, q_out=0.45)
+    assert sol.n_switches >= 100
+    assert sol.relative_energy_error <= 1e-12
+    # bounded switching: at speed 3 a switch needs the path to move a finite distance
+    assert sol.n_switches / T <= 3.0
+    times = np.array([s.time for s in sol.switches])
+    assert np.all(np.diff(times) > 1e-3), "chattering: two switches in a row"
+
+
+def test_circle_chain_never_switches_and_conserves_energy():
+    chain = Chain(3, 1.4)
+    p0, v0 = start(chain, [0.3], [2.0])
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 300.0, dense=False)
+    assert sol.n_switches == 0
+    assert sol.relative_energy_error <= 1e-12
+
+
+@pytest.mark.parametrize("L", [1.001, 1.5, 2.5, 2.999])
+def test_three_rods_period_is_the_length_of_the_curve(L):
+    """At unit speed the motion of n = 3 is periodic with period = length of M^3_L in hinge space."""
+    chart = SuspensionChart(3, L)
+    speed = lambda t: np.linalg.norm(chart.jacobian(np.array([t]))[:, 0])  # noqa: E731
+    length = sum(quad(speed, lo, lo + HALF_PI, epsabs=1e-13, epsrel=1e-13, limit=200)[0]
+                 for lo in (-np.pi, -HALF_PI, 0.0, HALF_PI))
+    chain = Chain(3, L)
+    a0 = np.array([HALF_PI])
+    p0, v0 = chart.get_point(a0), chart.jacobian(a0)[:, 0] / speed(HALF_PI)
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 1.05 * length)
+    # the first return: <p(t) - p0, v0> changes sign from - to + as the chain passes its start
+    period = brentq(lambda t: (sol(t)[0] - p0) @ v0, 0.99 * length, 1.01 * length, xtol=1e-14)
+    assert period == pytest.approx(length, rel=1e-10)
+    p_end, v_end = sol(period)
+    assert np.abs(p_end - p0).max() < 1e-9 and np.abs(v_end - v0).max() < 1e-9
+
+
+def test_embedded_and_christoffel_forms_agree():
+    chain = Chain(4, 3.1)
+    p0, v0 = start(chain, [1.2, 0.3], [1.0, 0.2])
+    emb = solve_chart_exp_ode(chain.metric(), p0, v0, 10.0)
+    chr_ = solve_chart_exp_ode(chain.metric(), p0, v0, 10.0, form="christoffel")
+    assert emb.n_switches >= 1
+    ts = np.linspace(0, 10, 41)
+    assert np.abs(emb(ts)[0] - chr_(ts)[0]).max() <= 1e-9
+
+
+@pytest.mark.parametrize("n, L", [(4, 2.05), (5, 4.6), (6, 4.4)])
+def test_reversibility(n, L):
+    chain = Chain(n, L)
+    rng = np.random.default_rng(10 + n)
+    p0, v0 = start(chain, np.append(rng.uniform(-1.2, 1.2, n - 3), -1.0), np.append(1.0, rng.normal(size=n - 3)))
+    fwd = solve_chart_exp_ode(chain.metric(), p0, v0, 10.0, dense=False)
+    back = solve_chart_exp_ode(chain.metric(), *fwd.end_state(), -10.0, dense=False)
+    p_back, v_back = back.end_state()
+    assert fwd.n_switches >= 1
+    assert np.abs(p_back - p0).max() <= 1e-10
+    assert np.abs(v_back - v0).max() <= 1e-10 * max(1, np.abs(v0).max())
+
+
+def test_start_exactly_at_a_pole():
+    """Rods 0, 1, 2 aligned: chart 0's pole. The solver starts in another chart and passes through."""
+    chain = Chain(5, 3.4)
+    atlas = chain.atlas()
+    a_pole = np.array([0.3, HALF_PI, 1.0])
+    p0 = atlas.get_point(0, a_pole)
+    assert atlas.charts[0].quality(atlas.get_parameters(0, p0)) < 1e-7
+    j = atlas.get_chart_index(p0)
+    aj = atlas.get_parameters(j, p0)
+    v0 = atlas.charts[j].tangent_vector(aj, np.array([0.5, -1.0, 0.7]))
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 20.0)
+    assert sol.segments[0].chart == j != 0
+    assert sol.relative_energy_error <= 1e-12
+
+
+def test_real128_energy_error():
+    chain = Chain(4, 2.7)
+    p0, v0 = start(chain, [1.2, 0.3], [1.0, 0.2])
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, fp_type=hy.real128)
+    assert sol.relative_energy_error <= 1e-28
+
+
+def test_long_double_runs_end_to_end():
+    chain = Chain(4, 2.7)
+    p0, v0 = start(chain, [1.2, 0.3], [1.0, 0.2])
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 10.0, fp_type=np.longdouble)
+    assert sol.n_switches >= 1
+    assert sol.relative_energy_error <= 1e-17
+    p, _ = sol(5.0)
+    assert p.dtype == np.longdouble
+
+
+def test_chain_motion_returns_closed_configurations():
+    chain = Chain(5, 4.1, hinge_masses=[1, 2, 1, 3])
+    p0, v0 = start(chain, [0.2, 1.0, 0.5], [1.0, -0.5, 0.3])
+    motion = free_motion(chain, chain.from_point(p0), chain.from_point(v0), 5.0)
+    h, v = motion(np.linspace(0, 5, 11))
+    assert h.shape == (11, 4) and chain.closure_residual(h).max() < 1e-12
+    E = chain.kinetic_energy(v)
+    assert np.abs(E - E[0]).max() <= 1e-12 * E[0]
+
+
+class TestBadInput:
+    chain = Chain(4, 3.0)
+
+    def _pv(self):
+        return start(self.chain, [0.2, 0.3], [1.0, 0.0])
+
+    def test_non_closing_start(self):
+        p0, v0 = self._pv()
+        with pytest.raises(ValueError, match="does not close"):
+            solve_chart_exp_ode(self.chain.metric(), p0 * 1.01, v0, 1.0)
+
+    def test_nan(self):
+        p0, v0 = self._pv()
+        with pytest.raises(ValueError, match="finite"):
+            solve_chart_exp_ode(self.chain.metric(), p0, v0 * np.nan, 1.0)
+        with pytest.raises(ValueError, match="finite"):
+            solve_chart_exp_ode(self.chain.metric(), p0 * np.nan, v0, 1.0)
+
+    @pytest.mark.parametrize("T", [np.inf, np.nan, -np.inf])
+    def test_t_final_not_finite(self, T):
+        p0, v0 = self._pv()
+        with pytest.raises(ValueError, match="t_final must be finite"):
+            solve_chart_exp_ode(self.chain.metric(), p0, v0, T)
+
+    def test_non_tangent_velocity(self):
+        p0, v0 = self._pv()
+        normal = np.zeros(6)
+        normal[:2] = p0[:2]  # radial on the first hinge: changes |e_1|
+        with pytest.raises(ValueError, match="not tangent"):
+            solve_chart_exp_ode(self.chain.metric(), p0, v0 + normal, 1.0)
+        sol = solve_chart_exp_ode(self.chain.metric(), p0, v0 + normal, 1.0, project_velocity=True)
+        assert sol.relative_energy_error < 1e-12
+
+    def test_outside_span(self):
+        p0, v0 = self._pv()
+        sol = solve_chart_exp_ode(self.chain.metric(), p0, v0, 1.0)
+        with pytest.raises(ValueError, match="outside"):
+            sol(1.5)
+        with pytest.raises(ValueError, match="outside"):
+            sol(-0.1)
+
+    def test_L_out_of_range(self):
+        with pytest.raises(ValueError, match="2 < L < 4"):
+            Chain(4, 4.5)
+
+
+@pytest.mark.parametrize("n, L", [(4, 3.5), (5, 3.6), (6, 5.2)])
+@pytest.mark.parametrize("where", ["generic", "pole"])
+def test_chart_solution_matches_ambient_reference(n, L, where):
+    """Atlas geodesic vs hinge-space integration with Lagrange multipliers (no charts)."""
+    chain = Chain(n, L)
+    atlas = chain.atlas()
+    rng = np.random.default_rng(n)
+    a0 = np.append(rng.uniform(-1, 1, n - 3), 0.7)
+    c0 = np.append(1.0, 0.3 * rng.normal(size=n - 3))
+    if where == "pole":
+        a0[0] = HALF_PI  # chart 0's pole: its first n-1 rods stretched in one line
+    else:
+        a0[0] = 1.2  # heading for chart 0's pole
+    p0 = atlas.get_point(0, a0)
+    if where == "pole":
+        j = atlas.get_chart_index(p0)
+        assert j != 0
+        v0 = atlas.charts[j].tangent_vector(atlas.get_parameters(j, p0), c0)
+    else:
+        v0 = atlas.charts[0].tangent_vector(a0, c0)
+    v0 /= np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))  # unit speed
+    T = 10.0
+    ts = np.linspace(0, T, 21)
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, q_out=0.45)  # switches often
+    ref = integrate_ambient(chain, chain.from_point(p0), chain.from_point(v0), T, t_eval=ts, rtol=1e-13, atol=1e-13)
+    assert sol.n_switches >= (1 if where == "generic" else 0)
+    h_chart = chain.from_point(sol(ts)[0])
+    assert np.abs(h_chart - ref.hinges).max() <= 1e-9
