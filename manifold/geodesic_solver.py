@@ -176,6 +176,7 @@ def solve_chart_exp_ode(
     fp_type: type = float,
     tol: float | None = None,
     q_out: float | None = None,
+    switching: bool = True,
     form: str = "embedded",
     project_velocity: bool = False,
     tangent_tol: float = 1e-9,
@@ -199,66 +200,38 @@ def solve_chart_exp_ode(
     tol
         Taylor integrator tolerance; default the unit roundoff of ``fp_type``.
     q_out
-        Switch threshold on chart quality; default ``atlas.switch_threshold``.
+        Switch threshold on chart quality, in ``(0, 1)``; default ``atlas.switch_threshold``.
+    switching
+        ``False`` stays in the start chart whatever happens (for studies of
+        single-chart failure near a pole).
     form
         ``"embedded"`` (default) or ``"christoffel"`` (cross-check).
     project_velocity
         If true, replace ``v0`` by its K-orthogonal projection on the tangent
         space; otherwise a ``v0`` off the tangent space by more than
-        ``tangent_tol * |v0|`` raises ``ValueError``.
+        ``tangent_tol * max(1, |v0|)`` raises ``ValueError``.
     dense
         Keep heyoka's continuous output (needed to evaluate the solution at
         any ``t``; about ``(order+1) * 2 dim`` numbers per step).
     max_switches
         Safety limit on the number of chart switches.
     chart
-        Index of the chart in which ``(p0, v0)`` are given as ``(a, c)``.
+        Start in this chart, with ``(p0, v0)`` given as its parameters ``a``
+        and coefficients ``c``.  Default: the best chart at ``p0``.
 
     Returns
     -------
     GeodesicSolution
         Segments, switch log, energies, and a callable ``t -> (p, v)``.
     """
+    sol, i, a, c, q_out = _start(metric, p0, v0, t_final, fp_type, q_out, switching, project_velocity, tangent_tol, chart)
     atlas = metric.atlas
-    if atlas.dim == 0:
-        raise ValueError("a 0-dimensional manifold has no geodesic motion")
-    if not all(isinstance(c, SymbolicChart) for c in atlas.charts):
-        raise TypeError("solve_chart_exp_ode needs SymbolicChart charts (heyoka expressions of the chart map)")
-    t_final = float(t_final)
-    if not np.isfinite(t_final):
-        raise ValueError(f"t_final must be finite, got {t_final!r}")
-    q_out = atlas.switch_threshold if q_out is None else float(q_out)
-    if not 0 < q_out < 1:
-        raise ValueError(f"q_out must lie in (0, 1), got {q_out!r}")
-    if chart is not None:
-        a0, c0 = _as_vector(p0, "a", atlas.dim), _as_vector(v0, "c", atlas.dim)
-        p0, v0 = atlas.get_point(chart, a0), atlas.charts[chart].tangent_vector(a0, c0)
-    p0, v0 = _as_vector(p0, "p0", atlas.ambient_dim), _as_vector(v0, "v0", atlas.ambient_dim)
-
-    sol = GeodesicSolution(metric, fp_type, (0.0, t_final))
     num = sol._numerics
-    for i, chart in enumerate(atlas.charts):
-        num[i] = _ChartNumerics(chart, metric.K, q_out, fp_type)
     family = atlas.charts[0].family
     ta = gs.integrator(family, fp_type, tol, form)
-    polish_steps = 0 if fp_type is float else 2
     n_quality = len(family.quality_expressions(gs.chart_variables(family.dim)))
     two_pi = 8 * np.arctan(np.array(1, dtype=fp_type))  # 2 pi exact to fp_type
-
-    i = atlas.get_chart_index(p0)  # validates p0 (closure, shape, finiteness)
-    a = num[i].polish(atlas.get_parameters(i, p0).astype(fp_type), p0.astype(fp_type), polish_steps)
-    c = num[i].coefficients(a, v0.astype(fp_type))
-    _, v_tan, E0 = num[i].point_velocity_energy(a[:, None], c[:, None])
-    v_tan = v_tan[0]
-    off = float(np.max(np.abs((v_tan - v0.astype(fp_type)).astype(float))))
-    if off > tangent_tol * max(1.0, float(np.max(np.abs(v0)))) and not project_velocity:
-        raise ValueError(
-            f"v0 is not tangent at p0: it is {off:.3g} away from the tangent space "
-            f"(allowed {tangent_tol:g} * max(1, |v0|)); pass project_velocity=True to project it"
-        )
     t = fp_type(0.0)
-    sol.energy_times.append(t)
-    sol.energies.append(E0[0])
     while True:
         ta.state[:] = np.concatenate([a, c])
         ta.time = t
@@ -269,15 +242,14 @@ def solve_chart_exp_ode(
         outcome, n_steps, cout = res[0], res[3], res[4]
         sol.segments.append(Segment(i, t, ta.time, n_steps, cout))
         _record_energy(sol, num[i], cout, ta, atlas.dim, dense)
+        state = np.array(ta.state)
+        a, c = state[: atlas.dim], state[atlas.dim :]
         if outcome == hy.taylor_outcome.time_limit:
-            state = np.array(ta.state)
-            sol.final_state = (i, state[: atlas.dim], state[atlas.dim :])
+            sol.final_state = (i, a, c)
             return sol
         if outcome.value >= 0:
             raise RuntimeError(f"integration failed at t = {ta.time}: {outcome} (chart {atlas.ids[i]})")
         t = ta.time
-        state = np.array(ta.state)
-        a, c = state[: atlas.dim], state[atlas.dim :]
         event = -outcome.value - 1
         if event >= n_quality:  # a periodic parameter left [-pi, pi]: wrap it, same chart
             k = family.periodic[(event - n_quality) // 2]
@@ -285,17 +257,65 @@ def solve_chart_exp_ode(
             continue
         if len(sol.switches) >= max_switches:
             raise RuntimeError(f"more than max_switches = {max_switches} chart switches by t = {t}")
-        i, a, c = _switch(sol, i, a, c, t, q_out, polish_steps)
+        i, a, c = _switch(sol, i, a, c, t, q_out)
 
 
-def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t, q_out: float, polish_steps: int):
+def _start(metric, p0, v0, t_final, fp_type, q_out, switching, project_velocity, tangent_tol, chart):
+    """Validate the inputs; return the empty solution and the start state ``(i, a, c)``.
+
+    ``q_out`` comes back as the value given to the integrator's events: below
+    any cosine (-2) when ``switching`` is off.
+    """
+    atlas = metric.atlas
+    if atlas.dim == 0:
+        raise ValueError("a 0-dimensional manifold has no geodesic motion")
+    if not all(isinstance(ch, SymbolicChart) for ch in atlas.charts):
+        raise TypeError("geodesic solvers need SymbolicChart charts (heyoka expressions of the chart map)")
+    t_final = float(t_final)
+    if not np.isfinite(t_final):
+        raise ValueError(f"t_final must be finite, got {t_final!r}")
+    q_out = atlas.switch_threshold if q_out is None else float(q_out)
+    if not 0 < q_out < 1:
+        raise ValueError(f"q_out must lie in (0, 1), got {q_out!r}")
+    if not switching:
+        q_out = -2.0
+    if chart is not None:
+        a0, c0 = _as_vector(p0, "a", atlas.dim), _as_vector(v0, "c", atlas.dim)
+        p0, v0 = atlas.get_point(chart, a0), atlas.charts[chart].tangent_vector(a0, c0)
+    p0, v0 = _as_vector(p0, "p0", atlas.ambient_dim), _as_vector(v0, "v0", atlas.ambient_dim)
+
+    sol = GeodesicSolution(metric, fp_type, (0.0, t_final))
+    for k, ch in enumerate(atlas.charts):
+        sol._numerics[k] = _ChartNumerics(ch, metric.K, q_out, fp_type)
+    i = atlas.get_chart_index(p0) if chart is None else chart  # validates p0 (closure, shape, finiteness)
+    num = sol._numerics[i]
+    a = num.polish(atlas.get_parameters(i, p0).astype(fp_type), p0.astype(fp_type), _polish_steps(fp_type))
+    c = num.coefficients(a, v0.astype(fp_type))
+    _, v_tan, E0 = num.point_velocity_energy(a[:, None], c[:, None])
+    off = float(np.max(np.abs((v_tan[0] - v0.astype(fp_type)).astype(float))))
+    if off > tangent_tol * max(1.0, float(np.max(np.abs(v0)))) and not project_velocity:
+        raise ValueError(
+            f"v0 is not tangent at p0: it is {off:.3g} away from the tangent space "
+            f"(allowed {tangent_tol:g} * max(1, |v0|)); pass project_velocity=True to project it"
+        )
+    sol.energy_times.append(fp_type(0.0))
+    sol.energies.append(E0[0])
+    return sol, i, a, c, q_out
+
+
+def _polish_steps(fp_type: type) -> int:
+    """Newton steps after the float64 inverse: none in float64, two (quadratic convergence) beyond."""
+    return 0 if fp_type in (float, np.float64) else 2
+
+
+def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t, q_out: float):
     """Move the state ``(a, c)`` of chart ``i`` to the best chart; log the switch."""
     atlas, num = sol.metric.atlas, sol._numerics
     p, v, _ = num[i].point_velocity_energy(a[:, None], c[:, None])
     p, v = p[0], v[0]
     q_from = float(atlas.charts[i].quality(a.astype(float)))
     j = atlas.get_chart_index(p.astype(float))
-    a_j = num[j].polish(atlas.get_parameters(j, p.astype(float)).astype(sol.fp_type), p, polish_steps)
+    a_j = num[j].polish(atlas.get_parameters(j, p.astype(float)).astype(sol.fp_type), p, _polish_steps(sol.fp_type))
     q_to = float(atlas.charts[j].quality(a_j.astype(float)))
     if q_to <= q_out:
         raise RuntimeError(f"no chart of quality above q_out = {q_out} at t = {t} (best {q_to:.3g})")
