@@ -151,6 +151,21 @@ class SuspensionChart(SymbolicChart):
             return np.ones(a.shape[:-1])
         return np.min(np.cos(a[..., :-1]), axis=-1)
 
+    def sphere_point(self, a: ArrayLike) -> NDArray:
+        """The point of the unit sphere ``S^(n-2)`` in ``R^(n-1)`` with these suspension coordinates.
+
+        ``(phi_m, rest) -> (sin phi_m, cos phi_m * sphere(rest))``, ending with
+        ``t -> (cos t, sin t)``: the chart read as latitudes and longitude, a
+        homeomorphism of the configuration space onto the round sphere (used for
+        pictures; continuous through the poles, where ``cos phi_m = 0``).
+        """
+        a = self._check_parameters(a)
+        out = np.stack([np.cos(a[..., -1]), np.sin(a[..., -1])], axis=-1)
+        for k in range(self.dim - 2, -1, -1):
+            phi = a[..., k : k + 1]
+            out = np.concatenate([np.sin(phi), np.cos(phi) * out], axis=-1)
+        return out
+
     def rod_angles(self, a: ArrayLike) -> NDArray:
         """Rod angles ``theta_1 .. theta_n`` from the seed's angle form (own rod order)."""
         a = self._check_parameters(a)
