@@ -1,0 +1,138 @@
+"""Speed and accuracy of the atlas geodesic solver, n = 3..8.
+
+For each n (unit hinge masses, L = n - 1.3, unit kinetic speed, a generic start):
+
+* compile time of the geodesic integrator: cold (heyoka's disk cache off and
+  its in-memory cache cleared) and from heyoka's disk cache (a fresh cache
+  directory, populated once, then rebuilt);
+* a long run to T (default 1000) in float64 at heyoka's default tolerance:
+  wall time per unit simulated time, Taylor steps per second, chart switches,
+  relative energy error;
+* heyoka against scipy's DOP853 on the same chart ODE and switch rule, over a
+  shorter horizon: both at several tolerances, the final hinge error measured
+  against a long-double heyoka reference (tol 1e-19), and the DOP853/heyoka
+  wall-time ratio at equal final error (log-log interpolation of DOP853's
+  work-precision curve at heyoka's error levels).
+
+Run: ``python benchmarks/geodesic_speed.py [--T 1000] [--T-compare 20] [--n 3 4 5 6 7 8]``.
+Timings are wall clock on this machine; ratios are the numbers to compare.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+
+import heyoka as hy
+import numpy as np
+
+from linkage import Chain
+from manifold import geodesic_system as gs
+from manifold.geodesic_solver import solve_chart_exp_ode
+from manifold.scipy_geodesics import solve_chart_exp_ode_scipy
+
+
+def start(n: int, seed: int = 0) -> tuple[Chain, np.ndarray, np.ndarray]:
+    chain = Chain(n, n - 1.3)
+    atlas = chain.atlas()
+    rng = np.random.default_rng(seed)
+    a0 = np.append(rng.uniform(-1, 1, n - 3), 0.3)
+    p0 = atlas.get_point(0, a0)
+    v0 = atlas.charts[0].tangent_vector(a0, rng.normal(size=n - 2))
+    return chain, p0, v0 / np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))
+
+
+def _clear_caches() -> None:
+    gs.integrator.cache_clear()
+    gs._pieces.cache_clear()
+    hy.llvm_state.clear_memcache()
+
+
+def compile_times(n: int) -> tuple[float, float]:
+    """(cold, from disk cache) seconds to build the float64 integrator."""
+    family = Chain(n, n - 1.3).atlas().charts[0].family
+    hy.llvm_state.set_diskcache_enabled(False)
+    _clear_caches()
+    t0 = time.perf_counter()
+    gs.integrator(family)
+    cold = time.perf_counter() - t0
+    with tempfile.TemporaryDirectory() as cache:
+        hy.llvm_state.set_diskcache_path(cache)
+        hy.llvm_state.set_diskcache_enabled(True)
+        _clear_caches()
+        gs.integrator(family)  # populate
+        _clear_caches()
+        t0 = time.perf_counter()
+        gs.integrator(family)
+        cached = time.perf_counter() - t0
+        hy.llvm_state.set_diskcache_enabled(False)
+    return cold, cached
+
+
+def long_run(n: int, T: float) -> dict:
+    chain, p0, v0 = start(n)
+    solve_chart_exp_ode(chain.metric(), p0, v0, 0.01)  # compile outside the timing
+    t0 = time.perf_counter()
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, dense=False)
+    wall = time.perf_counter() - t0
+    return {"wall_per_time": wall / T, "steps_per_s": sol.n_steps / wall, "switches": sol.n_switches,
+            "energy_error": sol.relative_energy_error, "steps": sol.n_steps}
+
+
+def _final_hinges(sol) -> np.ndarray:
+    return sol.end_state()[0].astype(float)
+
+
+def work_precision(n: int, T: float) -> dict:
+    """Heyoka and DOP853 (time, final error) pairs, and the DOP853/heyoka ratio at equal error."""
+    chain, p0, v0 = start(n, seed=1)
+    metric = chain.metric()
+    ref = _final_hinges(solve_chart_exp_ode(metric, p0, v0, T, fp_type=np.longdouble, tol=1e-19, dense=False))
+
+    def measure(solve, **kw):
+        solve(metric, p0, v0, min(T, 0.5), dense=False, **kw)  # warm-up (compile, caches)
+        t0 = time.perf_counter()
+        sol = solve(metric, p0, v0, T, dense=False, **kw)
+        return time.perf_counter() - t0, float(np.abs(_final_hinges(sol) - ref).max())
+
+    hey = [measure(solve_chart_exp_ode, tol=tol) for tol in (1e-6, 1e-9, 1e-12, None)]
+    dop = [measure(solve_chart_exp_ode_scipy, rtol=r, atol=r) for r in (1e-6, 1e-8, 1e-10, 1e-12, 1e-13)]
+    return {"heyoka": hey, "dop853": dop, "ratios": _ratios(hey, dop)}
+
+
+def _ratios(hey: list, dop: list) -> list:
+    """(error, DOP853 time / heyoka time) where heyoka's error lies inside DOP853's range."""
+    d_err = np.log([e for _, e in dop])
+    d_time = np.log([t for t, _ in dop])
+    order = np.argsort(d_err)
+    out = []
+    for t, e in hey:
+        if d_err.min() <= np.log(e) <= d_err.max():
+            out.append((e, float(np.exp(np.interp(np.log(e), d_err[order], d_time[order]))) / t))
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, nargs="+", default=[3, 4, 5, 6, 7, 8])
+    parser.add_argument("--T", type=float, default=1000.0, help="long-run horizon")
+    parser.add_argument("--T-compare", type=float, default=20.0, help="horizon of the DOP853 comparison")
+    args = parser.parse_args()
+    print(f"{'n':>2} {'cold s':>7} {'cached s':>8} {'wall/T':>8} {'steps/s':>8} {'switches':>8} "
+          f"{'dE/E at T':>10}   DOP853/heyoka time at equal error")
+    for n in args.n:
+        cold, cached = compile_times(n)
+        hy.llvm_state.set_diskcache_enabled(False)
+        lr = long_run(n, args.T)
+        wp = work_precision(n, args.T_compare)
+        ratios = ", ".join(f"{r:.1f}x @ {e:.0e}" for e, r in wp["ratios"]) or "no overlap"
+        print(f"{n:>2} {cold:7.2f} {cached:8.2f} {lr['wall_per_time']:8.4f} {lr['steps_per_s']:8.0f} "
+              f"{lr['switches']:>8} {lr['energy_error']:10.1e}   {ratios}", flush=True)
+        pts = "; ".join(f"{t:.3f}s/{e:.0e}" for t, e in wp["heyoka"])
+        dpts = "; ".join(f"{t:.3f}s/{e:.0e}" for t, e in wp["dop853"])
+        print(f"     heyoka (tol 1e-6, 1e-9, 1e-12, eps): {pts}\n     DOP853 (rtol 1e-6..1e-13): {dpts}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
