@@ -51,7 +51,6 @@ class NumpyOps:
     sin = staticmethod(np.sin)
     cos = staticmethod(np.cos)
     sqrt = staticmethod(np.sqrt)
-    asin = staticmethod(np.arcsin)
     atan2 = staticmethod(np.arctan2)
 
     @staticmethod
@@ -61,11 +60,6 @@ class NumpyOps:
 
     where = staticmethod(np.where)
     abs = staticmethod(np.abs)
-
-    @staticmethod
-    def nonneg(x):
-        """``max(x, 0)``: a slack that rounding pushed below zero at a pole."""
-        return np.maximum(x, 0)
 
     @staticmethod
     def one_minus_sin(x):
@@ -145,9 +139,6 @@ class HeyokaOps:
     def sqrt(self, x):
         return self.hy.sqrt(x)
 
-    def asin(self, x):
-        return self.hy.asin(x)
-
     def atan2(self, y, x):
         return self.hy.atan2(y, x)
 
@@ -161,10 +152,6 @@ class HeyokaOps:
     def abs(self, x):
         hy = self.hy
         return hy.select(hy.lt(x, 0.0), -x, x)
-
-    def nonneg(self, x):
-        hy = self.hy
-        return hy.select(hy.lt(x, 0.0), hy.expression(0.0), x)
 
     def one_minus_sin(self, x):
         """``1 - sin x = 2 sin^2(pi/4 - x/2)``: no cancellation near ``x = pi/2``."""
@@ -185,7 +172,7 @@ class HeyokaOps:
         The plain quotient is 0/0 at ``x = 0``: its Taylor coefficients lose all
         accuracy there and heyoka's step size collapses.  The even polynomial has
         no such trap.  Halving the argument (``x/2 <= pi/2`` for ``x`` in
-        ``[0, pi]``) shortens the series needed for ``fp_type`` by a third.
+        ``[0, pi]``) shortens the series needed for ``fp_type`` by a fifth.
         """
         h = x / 2.0
         y = h * h

@@ -194,7 +194,8 @@ class SuspensionAtlas(Atlas):
         The chain.
     switch_threshold
         Quality below which the active chart should be left (default 0.25,
-        well below the worst best-chart quality 0.59 measured for n = 4..8).
+        well below the worst best-chart quality, about 0.63 for n = 4..8 in
+        ``benchmarks/atlas_quality.py``).
     """
 
     def __init__(self, n: int, L: float, switch_threshold: float = 0.25) -> None:

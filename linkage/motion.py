@@ -46,8 +46,9 @@ class ChainMotion:
 
     @property
     def chart_ids(self) -> list:
-        """Readable ids of the charts used, segment by segment."""
-        return [self.solution.metric.atlas.ids[s.chart] for s in self.solution.segments]
+        """Readable ids of the charts used, in order (a chart kept across an angle wrap counts once)."""
+        ids = [self.solution.metric.atlas.ids[s.chart] for s in self.solution.segments]
+        return [c for k, c in enumerate(ids) if k == 0 or c != ids[k - 1]]
 
 
 def free_motion(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, **kwargs: Any) -> ChainMotion:

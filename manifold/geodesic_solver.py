@@ -27,6 +27,14 @@ from .metric import InducedMetric
 from .symbolic import SymbolicChart
 
 
+class GeodesicIntegrationError(RuntimeError):
+    """The integration broke down; ``solution`` holds what was computed up to there."""
+
+    def __init__(self, message: str, solution: "GeodesicSolution") -> None:
+        super().__init__(message)
+        self.solution = solution
+
+
 @dataclass(frozen=True)
 class ChartSwitch:
     """One chart switch: when, from which chart to which, and the qualities there."""
@@ -101,7 +109,8 @@ class GeodesicSolution:
         ``(t0, t_final)`` (``t_final < t0`` for backward integration).
     energy_times, energies
         Kinetic energy ``1/2 c^T g c`` at every integrator step (``dense=True``)
-        or at every switch and the end (``dense=False``).
+        or at every segment end -- switches, angle wraps and ``t_final`` --
+        (``dense=False``).
     fp_type
         Floating type of the integration.
     """
@@ -228,7 +237,7 @@ def solve_chart_exp_ode(
     atlas = metric.atlas
     num = sol._numerics
     family = atlas.charts[0].family
-    ta = gs.integrator(family, fp_type, tol, form)
+    ta = gs.integrator(family, fp_type, tol, form, backward=float(t_final) < 0)
     n_quality = len(family.quality_expressions(gs.chart_variables(family.dim)))
     two_pi = 8 * np.arctan(np.array(1, dtype=fp_type))  # 2 pi exact to fp_type
     t = fp_type(0.0)
@@ -247,10 +256,12 @@ def solve_chart_exp_ode(
         if outcome == hy.taylor_outcome.time_limit:
             sol.final_state = (i, a, c)
             return sol
-        if outcome.value >= 0:
-            raise RuntimeError(f"integration failed at t = {ta.time}: {outcome} (chart {atlas.ids[i]})")
+        event = -outcome.value - 1  # heyoka reports terminal event k as outcome -(k + 1)
+        if not 0 <= event < len(ta.t_events if ta.with_events else ()):
+            sol.t_span = (0.0, float(sol.segments[-1].t_end))
+            raise GeodesicIntegrationError(
+                f"integration failed at t = {ta.time}: {outcome} (chart {atlas.ids[i]})", sol)
         t = ta.time
-        event = -outcome.value - 1
         if event >= n_quality:  # a periodic parameter left [-pi, pi]: wrap it, same chart
             k = family.periodic[(event - n_quality) // 2]
             a[k] += -two_pi if (event - n_quality) % 2 == 0 else two_pi
@@ -300,6 +311,8 @@ def _start(metric, p0, v0, t_final, fp_type, q_out, switching, project_velocity,
         )
     sol.energy_times.append(fp_type(0.0))
     sol.energies.append(E0[0])
+    if switching and float(atlas.charts[i].quality(a.astype(float))) < q_out:
+        i, a, c = _switch(sol, i, a, c, fp_type(0.0), q_out)  # its event would never fire: it starts past it
     return sol, i, a, c, q_out
 
 

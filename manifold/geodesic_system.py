@@ -151,16 +151,20 @@ def geodesic_equations(family: ChartFamily, fp_type: type = float, form: str = "
     return [(a, c) for a, c in zip(P.a, P.c)] + [(c, x) for c, x in zip(P.c, acc)]
 
 
-def switch_events(family: ChartFamily, fp_type: type) -> list:
+def switch_events(family: ChartFamily, fp_type: type, backward: bool = False) -> list:
     """Terminal events: ``quality_m(a) - q_out`` (decreasing), then ``a_p -+ pi`` for periodic ``a_p``.
 
     The first ``len(family.quality_expressions(a))`` events ask for a chart
     switch; each periodic parameter ``a_p`` then has two: leaving ``[-pi, pi]``
-    upward and downward (a wrap by ``-+ 2 pi``, same chart).
+    upward and downward (a wrap by ``-+ 2 pi``, same chart).  heyoka's event
+    directions refer to increasing time, so a backward integration
+    (``backward=True``) needs them mirrored.
     """
     P = _pieces(family, fp_type)
     q_out = hy.par[layout(family).q_out_index]
     up, down = hy.event_direction.positive, hy.event_direction.negative
+    if backward:
+        up, down = down, up
     events = [hy.t_event(e - q_out, direction=down, fp_type=fp_type) for e in family.quality_expressions(P.a)]
     for i in family.periodic:
         events += [
@@ -171,8 +175,12 @@ def switch_events(family: ChartFamily, fp_type: type) -> list:
 
 
 @lru_cache(maxsize=None)
-def integrator(family: ChartFamily, fp_type: type = float, tol: float | None = None, form: str = "embedded"):
+def integrator(
+    family: ChartFamily, fp_type: type = float, tol: float | None = None, form: str = "embedded", backward: bool = False
+):
     """Compiled Taylor integrator (compact mode) of the family's geodesics, with switch events.
+
+    ``backward=True`` mirrors the event directions for integration toward negative times.
 
     ``tol=None`` uses the unit roundoff of ``fp_type``.  The integrator is shared:
     callers set ``state``, ``time`` and ``pars`` before each use.  ``pars`` has
@@ -186,7 +194,7 @@ def integrator(family: ChartFamily, fp_type: type = float, tol: float | None = N
         np.zeros(2 * family.dim, dtype=fp_type),
         compact_mode=True,
         fp_type=fp_type,
-        t_events=switch_events(family, fp_type),
+        t_events=switch_events(family, fp_type, backward),
         **kw,
     )
 

@@ -203,3 +203,32 @@ def test_chart_solution_matches_ambient_reference(n, L, where):
     assert sol.n_switches >= (1 if where == "generic" else 0)
     h_chart = chain.from_point(sol(ts)[0])
     assert np.abs(h_chart - ref.hinges).max() <= 1e-9
+
+
+def test_backward_integration_switches_before_the_pole():
+    """Event directions follow time: a backward run must still leave a chart before its pole."""
+    chain = Chain(4, 2.9)
+    atlas = chain.atlas()
+    a0 = np.array([1.2, 0.3])
+    c0 = np.array([-1.0, 0.1])  # forward in time phi decreases, so backward it climbs to the pole
+    sol = solve_chart_exp_ode(chain.metric(), a0, c0, -3.0, chart=0)
+    assert sol.n_switches >= 1 and sol.switches[0].from_chart == 0
+    assert sol.switches[0].quality_from == pytest.approx(atlas.switch_threshold, abs=1e-9)
+    assert sol.relative_energy_error < 1e-12
+    ref = integrate_ambient(chain, chain.from_point(atlas.get_point(0, a0)),
+                            chain.from_point(atlas.charts[0].tangent_vector(a0, c0)), -3.0, rtol=1e-13, atol=1e-13)
+    assert np.abs(chain.from_point(sol.end_state()[0]) - ref.hinges[-1]).max() < 1e-9
+
+
+def test_backward_run_wraps_the_circle_angle():
+    chain = Chain(3, 1.7)
+    sol = solve_chart_exp_ode(chain.metric(), [0.0], [-2.0], -30.0, chart=0, dense=False)
+    i, a, c = sol.final_state
+    assert -np.pi <= float(a[0]) <= np.pi
+    assert sol.relative_energy_error < 1e-13
+
+
+def test_forced_start_chart_below_threshold_switches_at_once():
+    chain = Chain(4, 2.9)
+    sol = solve_chart_exp_ode(chain.metric(), [1.5, 0.3], [0.2, 1.0], 1.0, chart=0)
+    assert sol.switches and sol.switches[0].time == 0.0 and sol.segments[0].chart != 0

@@ -1,0 +1,134 @@
+"""The methods under study, behind one interface.
+
+Each method takes a chain, a start ``(p0, v0)`` (interleaved real point and
+tangent velocity), a horizon ``T``, sample times ``ts`` and one accuracy knob
+(a tolerance or a step size), and returns a :class:`Run`: hinges and energy at
+``ts``, wall time, and the failure it met, if any.  A failure is data here:
+the study shows where methods break.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from linkage import Chain
+from linkage.ambient import integrate_ambient
+from manifold import geodesic_system as gs
+from manifold.geodesic_solver import GeodesicIntegrationError, solve_chart_exp_ode
+from manifold.scipy_geodesics import _quality_cfunc, solve_chart_exp_ode_scipy
+
+
+@dataclass
+class Run:
+    """One integration: what came out and what it cost."""
+
+    method: str
+    knob: float
+    wall: float
+    ts: np.ndarray  # times actually reached (prefix of the requested ones on failure)
+    hinges: np.ndarray  # complex, (len(ts), n-1)
+    energy: np.ndarray  # kinetic energy at ts
+    failed: str | None = None  # what went wrong, if it did
+    steps: int = 0  # accepted steps; right-hand-side evaluations for the ambient methods
+
+
+def _timed(fn: Callable):
+    t0 = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - t0
+
+
+def _from_solution(name, knob, chain, sol, wall, ts, failed=None) -> Run:
+    ps, vs = sol(ts)
+    h = chain.from_point(np.asarray(ps, dtype=float))
+    v = chain.from_point(np.asarray(vs, dtype=float))
+    return Run(name, knob, wall, ts, h, chain.kinetic_energy(v), failed, sol.n_steps)
+
+
+def _warm_up(chain: Chain, tol=None, scipy: bool = False) -> None:
+    """Compile (or fetch from the caches) what a method needs, outside its timing."""
+    family = chain.atlas().charts[0].family
+    gs.transfer_cfunc(family, float)
+    if scipy:
+        gs.acceleration_cfunc(family, float)
+        _quality_cfunc(family)
+    else:
+        gs.integrator(family, float, tol)
+
+
+def atlas_taylor(chain: Chain, p0, v0, T, ts, tol) -> Run:
+    """Method 1 (ours): heyoka Taylor in the atlas, event-located switches."""
+    _warm_up(chain, tol)
+    sol, wall = _timed(lambda: solve_chart_exp_ode(chain.metric(), p0, v0, T, tol=tol))
+    return _from_solution("atlas Taylor (ours)", tol, chain, sol, wall, ts)
+
+
+def single_chart_taylor(chain: Chain, p0, v0, T, ts, tol, chart: int = 0) -> Run:
+    """Method 2: heyoka Taylor in one suspension chart, no switching."""
+    atlas = chain.atlas()
+    a0 = atlas.get_parameters(chart, p0)
+    c0 = atlas.charts[chart].coefficients(a0, v0)
+    name = "single chart Taylor"
+    _warm_up(chain, tol)
+    t0 = time.perf_counter()
+    failed = None
+    try:
+        sol = solve_chart_exp_ode(chain.metric(), a0, c0, T, tol=tol, chart=chart, switching=False)
+    except GeodesicIntegrationError as err:  # keep what was computed before the breakdown
+        sol, failed = err.solution, str(err)
+    wall = time.perf_counter() - t0
+    reached = ts[ts <= sol.t_span[1]]
+    return _finite_prefix(_from_solution(name, tol, chain, sol, wall, reached, failed))
+
+
+def scipy_atlas(chain: Chain, p0, v0, T, ts, rtol, method: str = "DOP853") -> Run:
+    """Method 3: scipy ``solve_ivp`` on the same chart ODE, switches through scipy events."""
+    name = f"scipy {method} atlas"
+    _warm_up(chain, scipy=True)
+    t0 = time.perf_counter()
+    try:
+        sol = solve_chart_exp_ode_scipy(chain.metric(), p0, v0, T, method=method, rtol=rtol, atol=rtol)
+    except RuntimeError as err:
+        return Run(name, rtol, time.perf_counter() - t0, ts[:0], np.zeros((0, chain.n - 1)), np.zeros(0), str(err))
+    return _from_solution(name, rtol, chain, sol, time.perf_counter() - t0, ts)
+
+
+def ambient(chain: Chain, p0, v0, T, ts, rtol, project: bool = False) -> Run:
+    """Method 4: hinge space with Lagrange multipliers (DOP853), optionally projected."""
+    name = "ambient DOP853" + (" + projection" if project else "")
+    sol, wall = _timed(lambda: integrate_ambient(chain, chain.from_point(p0), chain.from_point(v0), T, t_eval=ts,
+                                                  rtol=rtol, atol=rtol, project=project))
+    return Run(name, rtol, wall, ts, sol.hinges, sol.energy, None if sol.success else "solver failed", sol.nfev)
+
+
+def _finite_prefix(run: Run) -> Run:
+    """Cut a run at its first non-finite sample and say so."""
+    ok = np.all(np.isfinite(run.hinges), axis=-1) & np.isfinite(run.energy)
+    if ok.all():
+        return run
+    k = int(np.argmin(ok))
+    run.failed = run.failed or f"non-finite state at t = {run.ts[k]:.4g}"
+    run.ts, run.hinges, run.energy = run.ts[:k], run.hinges[:k], run.energy[:k]
+    return run
+
+
+def chart_pars(chart, K: np.ndarray, q_out: float = -2.0) -> np.ndarray:
+    """Runtime parameters of a chart's compiled geodesic system (float64)."""
+    return gs.layout(chart.family).pack(chart.family_parameters, chart.core_metric(K), q_out, float)
+
+
+def extra_methods(n: int, quick: bool) -> dict:
+    """Methods 5 and 6 for the work-precision sweep (added when available)."""
+    return {}
+
+
+def long_run_extras(chain, p0, v0, T, ts, quick) -> dict:
+    return {}
+
+
+def pole_extras(chain, p0, v0, T, ts) -> dict:
+    return {}
