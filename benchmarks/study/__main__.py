@@ -19,7 +19,7 @@ import numpy as np
 from . import experiments as X
 from . import report
 
-QUICK = {"wp": [(4, 10.0)], "long_T": 100.0, "size": [3, 4, 5], "size_T": 2.0, "misses": [0.0], "prec_T": 2.0}
+QUICK = {"wp": [(4, 20.0)], "long_T": 100.0, "size": [3, 4, 5], "size_T": 2.0, "misses": [0.0], "prec_T": 2.0}
 FULL = {"wp": [(4, 100.0), (6, 100.0)], "long_T": 1e4, "size": list(range(3, 11)), "size_T": 5.0,
         "misses": [0.0, 1e-6], "prec_T": 10.0}
 
@@ -37,7 +37,7 @@ def run(mode: str) -> dict:
     results["work_precision"] = []
     for n, T in cfg["wp"]:
         step(f"work-precision n = {n}, T = {T:g}")
-        results["work_precision"].append(X.work_precision(n, T, quick=quick))
+        results["work_precision"].append(X.work_precision(n, T, quick=quick, repeats=3 if quick else 2))
     step(f"long runs to T = {cfg['long_T']:g}")
     results["long_run"] = X.long_run(4, cfg["long_T"], quick=quick)
     results["poles"] = []

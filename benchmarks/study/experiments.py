@@ -70,7 +70,7 @@ def default_methods(n: int, quick: bool) -> dict:
         "single chart Taylor": (M.single_chart_taylor, tols[-1:]),
         "scipy DOP853 atlas": (lambda *a: M.scipy_atlas(*a, method="DOP853"), rtols),
         "scipy RK45 atlas": (lambda *a: M.scipy_atlas(*a, method="RK45"), [1e-6, 1e-8, 1e-10] if not quick else [1e-8]),
-        "scipy Radau atlas": (lambda *a: M.scipy_atlas(*a, method="Radau"), [1e-6, 1e-8, 1e-10] if not quick else []),
+        "scipy Radau atlas": (lambda *a: M.scipy_atlas(*a, method="Radau"), [1e-6, 1e-8] if not quick else []),
         "ambient DOP853": (M.ambient, rtols),
         "ambient DOP853 + projection": (lambda *a: M.ambient(*a, project=True), rtols[::2]),
     }
@@ -78,8 +78,8 @@ def default_methods(n: int, quick: bool) -> dict:
     return {k: v for k, v in out.items() if v[1]}
 
 
-def work_precision(n: int, T: float, quick: bool = False, samples: int = 101) -> dict:
-    """Every method at every knob: wall time and errors against the reference."""
+def work_precision(n: int, T: float, quick: bool = False, samples: int = 101, repeats: int = 2) -> dict:
+    """Every method at every knob: wall time (best of ``repeats``) and errors against the reference."""
     chain, p0, v0 = generic_start(n)
     ts = np.linspace(0, T, samples)
     ref = reference(chain, p0, v0, T, ts, fp_type=np.longdouble if quick else hy.real128)
@@ -87,8 +87,9 @@ def work_precision(n: int, T: float, quick: bool = False, samples: int = 101) ->
     rows = []
     for name, (fn, knobs) in default_methods(n, quick).items():
         for knob in knobs:
-            run = fn(chain, p0, v0, T, ts, knob)
-            rows.append({"method": name, "knob": knob, "wall": run.wall, "failed": run.failed,
+            runs = [fn(chain, p0, v0, T, ts, knob) for _ in range(repeats)]  # best of: first calls pay set-up
+            run = runs[-1]
+            rows.append({"method": name, "knob": knob, "wall": min(r.wall for r in runs), "failed": run.failed,
                          "steps": run.steps, **errors(run, ref, chain)})
     return {"n": n, "L": chain.L, "T": T, "reference": ref.method, "reference_wall": ref.wall, "rows": rows}
 

@@ -16,7 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from linkage import Chain
+from charts.seed_geodesics import integrate_seed_rk4
 from linkage.ambient import integrate_ambient
+from linkage.rattle import integrate_rattle
 from manifold import geodesic_system as gs
 from manifold.geodesic_solver import GeodesicIntegrationError, solve_chart_exp_ode
 from manifold.scipy_geodesics import _quality_cfunc, solve_chart_exp_ode_scipy
@@ -121,14 +123,51 @@ def chart_pars(chart, K: np.ndarray, q_out: float = -2.0) -> np.ndarray:
     return gs.layout(chart.family).pack(chart.family_parameters, chart.core_metric(K), q_out, float)
 
 
+def _sampled(name, knob, t, hinges, energy, ts, wall, failed, steps) -> Run:
+    """A fixed-step run read at the requested times (nearest recorded step, which the step sizes align)."""
+    reached = ts[ts <= t[-1] + 1e-9]
+    idx = np.clip(np.searchsorted(t, reached - 1e-9), 0, len(t) - 1)
+    return Run(name, knob, wall, reached, hinges[idx], energy[idx], failed, steps)
+
+
+def rattle(chain: Chain, p0, v0, T, ts, h) -> Run:
+    """Method 5: RATTLE (symplectic, constrained, fixed step ``h``) in hinge space."""
+    try:
+        sol, wall = _timed(lambda: integrate_rattle(chain, chain.from_point(p0), chain.from_point(v0), T, h))
+    except RuntimeError as err:
+        return Run("RATTLE", h, 0.0, ts[:0], np.zeros((0, chain.n - 1)), np.zeros(0), str(err))
+    return _sampled("RATTLE", h, sol.t, sol.hinges, sol.energy, ts, wall, None, sol.n_steps)
+
+
+def seed_rk4(chain: Chain, p0, v0, T, ts, h) -> Run:
+    """Method 6 (n = 4): the seed's closed-form metric, finite-difference Christoffels, fixed-step RK4, one chart."""
+    chart = chain.atlas().charts[0]  # the seed's chart: identity rod order
+    a0 = chart.get_parameters(p0)
+    c0 = chart.coefficients(a0, v0)
+    sol, wall = _timed(lambda: integrate_seed_rk4(chain.L, a0, c0, T, h))
+    failed = None if sol.failed_at is None else f"left the chart (non-finite or |phi| > pi/2) at t = {sol.failed_at:.4g}"
+    return _sampled("seed RK4 (metric4 + FD Christoffel)", h, sol.t, sol.hinges, sol.energy, ts, wall, failed,
+                    sol.n_steps)
+
+
 def extra_methods(n: int, quick: bool) -> dict:
-    """Methods 5 and 6 for the work-precision sweep (added when available)."""
-    return {}
+    """Methods 5 and 6 for the work-precision sweep (method 6 exists for n = 4 only)."""
+    hs = [0.02, 0.01, 0.005] if quick else [0.05, 0.02, 0.01, 0.005, 0.002]
+    out = {"RATTLE": (rattle, hs)}
+    if n == 4:  # metric4 is for 4 rods, unit hinge masses, massless rods: the study's chains
+        out["seed RK4 (metric4 + FD Christoffel)"] = (seed_rk4, hs)
+    return out
 
 
 def long_run_extras(chain, p0, v0, T, ts, quick) -> dict:
-    return {}
+    out = {"RATTLE (h = 0.01)": lambda: rattle(chain, p0, v0, T, ts, 0.01)}
+    if chain.n == 4:
+        out["seed RK4 (h = 0.01)"] = lambda: seed_rk4(chain, p0, v0, T, ts, 0.01)
+    return out
 
 
 def pole_extras(chain, p0, v0, T, ts) -> dict:
-    return {}
+    out = {"RATTLE (h = 0.005)": rattle(chain, p0, v0, T, ts, 0.005)}
+    if chain.n == 4:
+        out["seed RK4 (h = 0.005)"] = seed_rk4(chain, p0, v0, T, ts, 0.005)
+    return out

@@ -1,0 +1,46 @@
+"""The method study's quick mode: the claims the docs make, checked on every CI run.
+
+Ratios of wall times on the same machine in the same process, never absolute times.
+"""
+
+import numpy as np
+import pytest
+
+from benchmarks.study import experiments as X
+from benchmarks.study.report import OURS
+
+
+@pytest.fixture(scope="module")
+def work_precision():
+    return X.work_precision(4, 20.0, quick=True, repeats=3)
+
+
+def test_ours_beats_scipy_dop853_at_equal_error(work_precision):
+    ratios = X.speed_ratio_at_equal_error(work_precision["rows"], OURS, "scipy DOP853 atlas")
+    assert len(ratios) >= 2, "the error ranges must overlap"
+    geometric_mean = float(np.exp(np.mean(np.log([r for _, r in ratios]))))
+    assert geometric_mean > 1.0, ratios
+
+
+def test_ours_reaches_errors_dop853_cannot(work_precision):
+    rows = work_precision["rows"]
+    best = {name: min(r["hinge"] for r in rows if r["method"] == name and not r["failed"])
+            for name in (OURS, "scipy DOP853 atlas")}
+    assert best[OURS] * 10 < best["scipy DOP853 atlas"]
+    assert best[OURS] < 1e-13
+
+
+def test_single_chart_fails_at_a_pole_and_the_atlas_does_not():
+    res = X.through_pole(n=4, T=2.0)
+    ours, single = res["runs"][OURS], res["runs"]["single chart Taylor (chart 0)"]
+    assert ours["failed"] is None and ours["energy"] < 1e-12 and ours["hinge"] < 1e-12
+    assert single["failed"] is not None and single["t"][-1] < 1.0 + 1e-9  # broke down at the pole (t = 1)
+    seed = res["runs"]["seed RK4 (h = 0.005)"]
+    assert seed["failed"] is not None
+
+
+def test_plain_sinc_breaks_the_taylor_integrator_and_the_polynomial_does_not():
+    res = X.through_circle_pole(T=10.0, max_steps=3000)
+    assert res["polynomial sinc (ours)"]["status"] == "reached T"
+    assert res["plain sin(x)/x"]["status"].startswith("failed")
+    assert res["plain sin(x)/x, off the pole"]["status"] != "reached T"
