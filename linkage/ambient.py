@@ -205,6 +205,39 @@ def _segment_bounds(t_final: float, interval: float | None) -> NDArray:
     return b if t_final > 0 else 0.0 - b  # 0.0 - b: no -0.0 at the start
 
 
+def start_state(
+    chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, tangent_tol: float, project_velocity: bool
+) -> tuple["_ConstrainedSystem", NDArray, NDArray, float]:
+    """Validate a hinge-space start; return the constraint system, real ``x0``, ``v0`` and ``t_final``.
+
+    ``hinges0`` must close (``ConfigurationError``), ``velocity0`` be finite and
+    tangent (``max_k |(G v)_k| <= tangent_tol * max(1, |v|)``) unless
+    ``project_velocity``, which projects it K-orthogonally; ``t_final`` finite, nonzero.
+    """
+    h0 = chain.check_configuration(hinges0, tol=1e-9)
+    v0 = np.asarray(velocity0)
+    if v0.shape != (chain.n - 1,):
+        raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
+    if not np.all(np.isfinite(v0)):
+        raise ValueError(f"velocity0 must be finite, got {v0}")
+    t_final = _check_time("t_final", t_final)
+    if t_final == 0:
+        raise ValueError("t_final must be nonzero (the end time of the integration from t = 0)")
+    tangent_tol = _check_time("tangent_tol", tangent_tol, positive=True)
+    system = _ConstrainedSystem(chain)
+    x0, v0 = to_real(h0).astype(float), to_real(v0.astype(complex)).astype(float)
+    residual = np.max(np.abs(system.jacobian(x0) @ v0))
+    if residual > tangent_tol * max(1.0, np.linalg.norm(v0)):
+        if not project_velocity:
+            raise ValueError(
+                f"velocity0 is not tangent to the configuration space: max_k |(G v)_k| = {residual:.3g} "
+                f"exceeds tangent_tol * max(1, |v|) = {tangent_tol * max(1.0, np.linalg.norm(v0)):.3g} "
+                "(pass project_velocity=True to project it)"
+            )
+        v0 = system.project_velocity(x0, v0)
+    return system, x0, v0, t_final
+
+
 def integrate_ambient(
     chain: Chain,
     hinges0: ArrayLike,
@@ -269,29 +302,8 @@ def integrate_ambient(
     -------
     AmbientSolution
     """
-    h0 = chain.check_configuration(hinges0, tol=1e-9)
-    v0 = np.asarray(velocity0)
-    if v0.shape != (chain.n - 1,):
-        raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
-    if not np.all(np.isfinite(v0)):
-        raise ValueError(f"velocity0 must be finite, got {v0}")
-    t_final = _check_time("t_final", t_final)
-    if t_final == 0:
-        raise ValueError("t_final must be nonzero (the end time of the integration from t = 0)")
-    tangent_tol = _check_time("tangent_tol", tangent_tol, positive=True)
+    system, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
     interval = _check_time("projection_interval", projection_interval, positive=True) if project else None
-
-    system = _ConstrainedSystem(chain)
-    x0, v0 = to_real(h0).astype(float), to_real(v0.astype(complex)).astype(float)
-    residual = np.max(np.abs(system.jacobian(x0) @ v0))
-    if residual > tangent_tol * max(1.0, np.linalg.norm(v0)):
-        if not project_velocity:
-            raise ValueError(
-                f"velocity0 is not tangent to the configuration space: max_k |(G v)_k| = {residual:.3g} "
-                f"exceeds tangent_tol * max(1, |v|) = {tangent_tol * max(1.0, np.linalg.norm(v0)):.3g} "
-                "(pass project_velocity=True to project it)"
-            )
-        v0 = system.project_velocity(x0, v0)
 
     if t_eval is not None:
         t_eval = np.asarray(t_eval, dtype=float)

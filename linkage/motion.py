@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from manifold.geodesic_solver import GeodesicSolution, solve_chart_exp_ode

@@ -44,9 +44,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from charts.chain_geometry import to_complex, to_real
+from charts.chain_geometry import to_complex
 
-from .ambient import _check_time, _ConstrainedSystem
+from .ambient import _check_time, _ConstrainedSystem, start_state
 from .chain import Chain
 
 __all__ = ["RattleSolution", "integrate_rattle"]
@@ -214,15 +214,6 @@ def integrate_rattle(
     RuntimeError
         Newton's method failed to put a step on the constraints.
     """
-    h0 = chain.check_configuration(hinges0, tol=1e-9)
-    v0 = np.asarray(velocity0)
-    if v0.shape != (chain.n - 1,):
-        raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
-    if not np.all(np.isfinite(v0)):
-        raise ValueError(f"velocity0 must be finite, got {v0}")
-    t_final = _check_time("t_final", t_final)
-    if t_final == 0:
-        raise ValueError("t_final must be nonzero (the end time of the integration from t = 0)")
     h = _check_time("h", h, positive=True)
     if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
         raise ValueError(f"record_every must be an integer >= 1, got {record_every!r}")
@@ -230,20 +221,7 @@ def integrate_rattle(
     if isinstance(max_newton_iterations, bool) or not isinstance(max_newton_iterations, (int, np.integer)) \
             or max_newton_iterations < 1:
         raise ValueError(f"max_newton_iterations must be an integer >= 1, got {max_newton_iterations!r}")
-    tangent_tol = _check_time("tangent_tol", tangent_tol, positive=True)
-
-    system = _ConstrainedSystem(chain)
-    x, v = to_real(h0).astype(float), to_real(v0.astype(complex)).astype(float)
-    G = system.jacobian(x)
-    residual = np.max(np.abs(G @ v))
-    if residual > tangent_tol * max(1.0, np.linalg.norm(v)):
-        if not project_velocity:
-            raise ValueError(
-                f"velocity0 is not tangent to the configuration space: max_k |(G v)_k| = {residual:.3g} "
-                f"exceeds tangent_tol * max(1, |v|) = {tangent_tol * max(1.0, np.linalg.norm(v)):.3g} "
-                "(pass project_velocity=True to project it)"
-            )
-        v = system.project_velocity(x, v)
+    system, x, v, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
 
     steps = _step_sizes(t_final, h)
     n_steps = len(steps)
@@ -255,6 +233,7 @@ def integrate_rattle(
     ts[0], xs[0], vs[0] = 0.0, x, v
 
     rattle = _Rattle(system, newton_tol, int(max_newton_iterations))
+    G = system.jacobian(x)
     s = np.zeros(chain.n)
     total_it, r, h_prev = 0, 1, steps[0]
     t = 0.0
