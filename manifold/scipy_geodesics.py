@@ -80,7 +80,7 @@ def solve_chart_exp_ode_scipy(
         pars = sol._numerics[i].pars[: acc.nparams]
 
         def rhs(_t, y, pars=pars):
-            return np.concatenate([y[k:], acc(y, pars=pars)])
+            return np.concatenate([y[k:], acc(np.ascontiguousarray(y), pars=pars)])  # Radau passes strided views
 
         res = solve_ivp(rhs, (t, t_final), np.concatenate([a, c]), method=method, rtol=rtol, atol=atol,
                         events=events or None, dense_output=dense)

@@ -232,3 +232,16 @@ def test_forced_start_chart_below_threshold_switches_at_once():
     chain = Chain(4, 2.9)
     sol = solve_chart_exp_ode(chain.metric(), [1.5, 0.3], [0.2, 1.0], 1.0, chart=0)
     assert sol.switches and sol.switches[0].time == 0.0 and sol.segments[0].chart != 0
+
+
+@pytest.mark.parametrize("method, rtol, tol", [("DOP853", 1e-12, 1e-9), ("RK45", 1e-10, 1e-6), ("Radau", 1e-8, 1e-5)])
+def test_scipy_driver_follows_the_same_geodesic(method, rtol, tol):
+    from manifold.scipy_geodesics import solve_chart_exp_ode_scipy
+
+    chain = Chain(4, 2.9)
+    p0, v0 = start(chain, [1.2, 0.3], [1.0, 0.2])
+    ours = solve_chart_exp_ode(chain.metric(), p0, v0, 8.0)
+    theirs = solve_chart_exp_ode_scipy(chain.metric(), p0, v0, 8.0, method=method, rtol=rtol, atol=rtol)
+    assert theirs.n_switches == ours.n_switches >= 1
+    ts = np.linspace(0, 8, 17)
+    assert np.abs(theirs(ts)[0] - ours(ts)[0]).max() <= tol
