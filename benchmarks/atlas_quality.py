@@ -12,7 +12,7 @@ both ends, sample configurations three ways and record
 then polish the worst samples by Nelder-Mead on ``max_i q_i`` (an adversarial
 search: sampling alone overestimates the worst case).
 
-Run: ``python benchmarks/atlas_quality.py [--samples N]``.
+Run: ``python -m benchmarks.atlas_quality [--samples N]``.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ For each n (unit hinge masses, L = n - 1.3, unit kinetic speed, a generic start)
   wall-time ratio at equal final error (log-log interpolation of DOP853's
   work-precision curve at heyoka's error levels).
 
-Run: ``python benchmarks/geodesic_speed.py [--T 1000] [--T-compare 20] [--n 3 4 5 6 7 8]``.
+Run: ``python -m benchmarks.geodesic_speed [--T 1000] [--T-compare 20] [--n 3 4 5 6 7 8]``.
 Timings are wall clock on this machine; ratios are the numbers to compare.
 """
 
@@ -32,15 +32,7 @@ from manifold import geodesic_system as gs
 from manifold.geodesic_solver import solve_chart_exp_ode
 from manifold.scipy_geodesics import solve_chart_exp_ode_scipy
 
-
-def start(n: int, seed: int = 0) -> tuple[Chain, np.ndarray, np.ndarray]:
-    chain = Chain(n, n - 1.3)
-    atlas = chain.atlas()
-    rng = np.random.default_rng(seed)
-    a0 = np.append(rng.uniform(-1, 1, n - 3), 0.3)
-    p0 = atlas.get_point(0, a0)
-    v0 = atlas.charts[0].tangent_vector(a0, rng.normal(size=n - 2))
-    return chain, p0, v0 / np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))
+from .study.experiments import generic_start
 
 
 def _clear_caches() -> None:
@@ -71,7 +63,7 @@ def compile_times(n: int) -> tuple[float, float]:
 
 
 def long_run(n: int, T: float) -> dict:
-    chain, p0, v0 = start(n)
+    chain, p0, v0 = generic_start(n)
     solve_chart_exp_ode(chain.metric(), p0, v0, 0.01)  # compile outside the timing
     t0 = time.perf_counter()
     sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, dense=False)
@@ -86,7 +78,7 @@ def _final_hinges(sol) -> np.ndarray:
 
 def work_precision(n: int, T: float) -> dict:
     """Heyoka and DOP853 (time, final error) pairs, and the DOP853/heyoka ratio at equal error."""
-    chain, p0, v0 = start(n, seed=1)
+    chain, p0, v0 = generic_start(n, seed=1)
     metric = chain.metric()
     ref = _final_hinges(solve_chart_exp_ode(metric, p0, v0, T, fp_type=np.longdouble, tol=1e-19, dense=False))
 

@@ -74,3 +74,14 @@ def folded_conditioning(n: int, L: float) -> float:
     1e-3 of the end the plain tolerances hold; closer, they scale with this.
     """
     return max(1.0, 1e-3 / (L - (n - 2)))
+
+
+def unit_speed_start(chain, a, c):
+    """Configuration at chart-0 parameters ``a`` and the tangent velocity ``J(a) c`` scaled to unit kinetic speed."""
+    from charts import SuspensionChart
+
+    chart = SuspensionChart(chain.n, chain.L)
+    a = np.asarray(a, dtype=float)
+    h0 = chart.hinges(a)
+    v0 = chain.from_point(chart.jacobian(a) @ np.asarray(c, dtype=float))
+    return h0, v0 / np.sqrt(2 * chain.kinetic_energy(v0))

@@ -3,19 +3,14 @@
 import numpy as np
 import pytest
 
-from charts import SuspensionChart
 from linkage import Chain, ConfigurationError
 from linkage.ambient import integrate_ambient
 from linkage.rattle import integrate_rattle
 
+from .conftest import unit_speed_start
 
-def start(chain: Chain, a, c):
-    """Configuration at chart parameters ``a`` and a tangent velocity ``J(a) c`` of unit kinetic speed."""
-    chart = SuspensionChart(chain.n, chain.L)
-    a = np.asarray(a, dtype=float)
-    h0 = chart.hinges(a)
-    v0 = chain.from_point(chart.jacobian(a) @ np.asarray(c, dtype=float))
-    return h0, v0 / np.sqrt(2 * chain.kinetic_energy(v0))
+
+start = unit_speed_start
 
 
 CASES = [
