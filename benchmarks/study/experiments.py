@@ -63,7 +63,7 @@ def errors(run: M.Run, ref: M.Run, chain: Chain) -> dict:
 
 def default_methods(n: int, quick: bool) -> dict:
     """Method name -> (callable(chain, p0, v0, T, ts, knob), knobs)."""
-    tols = [1e-6, 1e-9, 1e-12, None] if not quick else [1e-8, 1e-11, None]
+    tols = [1e-6, 1e-9, 1e-12, None] if not quick else [1e-8, 1e-10, 1e-12, 1e-13, None]
     rtols = [1e-6, 1e-8, 1e-10, 1e-12, 1e-13] if not quick else [1e-8, 1e-10, 1e-12, 1e-13]
     out = {
         "atlas Taylor (ours)": (M.atlas_taylor, tols),

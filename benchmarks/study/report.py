@@ -31,9 +31,9 @@ def fig_work_precision(wp: dict, path: Path) -> None:
         ok = [r for r in rows if not r["failed"] and np.isfinite(r["hinge"])]
         if ok:
             ax.loglog([r["wall"] for r in ok], [max(r["hinge"], 1e-17) for r in ok], label=name, color=f"C{k}", **_style(name))
-        for r in rows:
-            if r["failed"] or not np.isfinite(r["hinge"]):
-                ax.plot(r["wall"], 1.0, "x", color=f"C{k}", ms=10, label=f"{name}: failed")
+        failed = [r for r in rows if r["failed"] or not np.isfinite(r["hinge"])]
+        for j, r in enumerate(failed):
+            ax.plot(r["wall"], 1.0, "x", color=f"C{k}", ms=10, label=f"{name}: failed" if j == 0 else None)
     ax.set_xlabel("wall time [s]")
     ax.set_ylabel("max hinge error vs reference")
     ax.set_title(f"work-precision, n = {wp['n']}, L = {wp['L']}, T = {wp['T']:g}")
