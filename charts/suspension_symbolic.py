@@ -19,15 +19,11 @@ from functools import lru_cache
 import heyoka as hy
 import numpy as np
 
+from manifold.geodesic_system import chart_variables
 from manifold.symbolic import ChartFamily
 
 from . import suspension_formula as formula
 from .backends import HeyokaOps
-
-
-def chart_variables(n: int) -> list:
-    """The heyoka variables ``a0 .. a{n-3}`` of the chart parameters."""
-    return [hy.expression(f"a{k}") for k in range(n - 2)]
 
 
 def hinge_expressions(a: list, fp_type: type = float, L=hy.par[0]) -> list:
@@ -76,7 +72,7 @@ def jacobian_cfunc(n: int, fp_type: type = float):
     Output: ``2(n-1)`` hinge coordinates followed by the Jacobian in row-major
     order (``2(n-1) x (n-2)`` entries).
     """
-    a = chart_variables(n)
+    a = chart_variables(n - 2)
     z = hinge_expressions(a, fp_type)
     jac = hy.diff_tensors(z, a, diff_order=1).jacobian
     outs = list(z) + [jac[r, c] for r in range(len(z)) for c in range(len(a))]
