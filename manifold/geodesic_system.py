@@ -38,7 +38,6 @@ FORMS = ("embedded", "christoffel")
 class Layout:
     """Where things live in the state and parameter vectors of a family's system."""
 
-    dim: int
     n_theta: int
     n_points: int  # M = point_dim / block: size of B
 
@@ -49,10 +48,6 @@ class Layout:
     @property
     def q_out_index(self) -> int:
         return self.n_theta + self.n_metric
-
-    @property
-    def n_pars(self) -> int:
-        return self.q_out_index + 1
 
     def metric_pars(self) -> list[list[hy.expression]]:
         """Symmetric matrix of parameter expressions for ``B``."""
@@ -72,7 +67,7 @@ class Layout:
 
 
 def layout(family: ChartFamily) -> Layout:
-    return Layout(family.dim, family.n_params, family.point_dim // family.block)
+    return Layout(family.n_params, family.point_dim // family.block)
 
 
 def chart_variables(k: int) -> list:
