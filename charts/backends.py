@@ -155,12 +155,12 @@ class HeyokaOps:
 
     def one_minus_sin(self, x):
         """``1 - sin x = 2 sin^2(pi/4 - x/2)``: no cancellation near ``x = pi/2``."""
-        h = self.hy.sin(self.hy.pi / 4.0 - x / 2.0)
+        h = self.sin(self.hy.pi / 4.0 - x / 2.0)
         return 2.0 * h * h
 
     def one_plus_sin(self, x):
         """``1 + sin x = 2 sin^2(pi/4 + x/2)``."""
-        h = self.hy.sin(self.hy.pi / 4.0 + x / 2.0)
+        h = self.sin(self.hy.pi / 4.0 + x / 2.0)
         return 2.0 * h * h
 
     def asin_clipped(self, x):
@@ -179,7 +179,7 @@ class HeyokaOps:
         acc = self._sinc_coeffs[-1]
         for c in reversed(self._sinc_coeffs[:-1]):
             acc = c + y * acc
-        return self.hy.cos(h) * acc
+        return self.cos(h) * acc
 
     def ratio_or_zero(self, a, b):
         hy = self.hy

@@ -20,6 +20,7 @@ import heyoka as hy
 import numpy as np
 
 from manifold.geodesic_system import chart_variables
+from manifold.jets import Jet, JetOps
 from manifold.symbolic import ChartFamily
 
 from . import suspension_formula as formula
@@ -59,6 +60,13 @@ class SuspensionFamily(ChartFamily):
 
     def point_expressions(self, a, fp_type):
         return hinge_expressions(list(a), fp_type)
+
+    def point_jets(self, a, c, fp_type):
+        """The same formula pushed through second-order jets (``z``, ``J``, ``J c``, ``z_ab c^a c^b``)."""
+        k = len(a)
+        jets = [Jet.variable(ai, ci, i, k) for i, (ai, ci) in enumerate(zip(a, c))]
+        z = formula.hinges(jets, hy.par[0], JetOps(HeyokaOps(fp_type)))
+        return [part for h in z for part in (h.re, h.im)]
 
     def quality_expressions(self, a):
         """``cos(phi_m)`` for every latitude (none for ``n = 3``: the circle chart is global)."""

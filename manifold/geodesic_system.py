@@ -79,38 +79,62 @@ def _variables(k: int) -> tuple[list, list]:
     return chart_variables(k), [hy.expression(f"c{i}") for i in range(k)]
 
 
+def _dot(xs: list, ys: list) -> hy.expression:
+    """``sum x_i y_i`` skipping Python zeros (entries a jet knows to vanish)."""
+    terms = [x * y for x, y in zip(xs, ys) if not (_is_zero(x) or _is_zero(y))]
+    return hy.sum(terms) if terms else hy.expression(0.0)
+
+
+def _is_zero(x) -> bool:
+    return isinstance(x, (int, float)) and x == 0
+
+
 class _Pieces:
-    """The shared symbolic pieces: ``z``, ``J``, ``U = W J`` and the metric ``g``."""
+    """The shared symbolic pieces: ``z``, ``J`` (rows of length ``k``), ``J c``, ``h``, ``U = W J``, ``g``.
+
+    ``h = sum_ab z_ab c^a c^b`` (the velocity-quadratic part of ``z''``).  With a
+    family that provides :meth:`~manifold.symbolic.ChartFamily.point_jets`, all
+    of them come from one forward sweep of second-order jets
+    (:mod:`manifold.jets`); otherwise from heyoka's symbolic differentiation of
+    the expanded ``z`` (twice for ``h``), which grows much faster with the size
+    of the chart formula.
+    """
 
     def __init__(self, family: ChartFamily, fp_type: type) -> None:
         lay = layout(family)
         self.a, self.c = _variables(family.dim)
-        self.z = family.point_expressions(self.a, fp_type)
-        self.J = hy.diff_tensors(self.z, self.a, diff_order=1).jacobian
-        self.B = lay.metric_pars()
         self.block, self.k, self.N = family.block, family.dim, family.point_dim
-        self.U = [[self._apply_W([self.J[r, i] for r in range(self.N)])[r] for i in range(self.k)] for r in range(self.N)]
-        self.g = [[self.dot_W_col(i, [self.J[r, j] for r in range(self.N)]) for j in range(self.k)] for i in range(self.k)]
+        self.B = lay.metric_pars()
+        jets = family.point_jets(self.a, self.c, fp_type)
+        if jets is not None:
+            self.z = [j.v for j in jets]
+            self.J = [list(j.g) for j in jets]
+            self.Jc = [j.d1 if not _is_zero(j.d1) else hy.expression(0.0) for j in jets]
+            self.h = [j.d2 for j in jets]
+        else:
+            self.z = family.point_expressions(self.a, fp_type)
+            jac = hy.diff_tensors(self.z, self.a, diff_order=1).jacobian
+            self.J = [[jac[r, i] for i in range(self.k)] for r in range(self.N)]
+            self.Jc = [_dot(row, self.c) for row in self.J]
+            dw = hy.diff_tensors(self.Jc, self.a, diff_order=1).jacobian
+            self.h = [_dot([dw[r, i] for i in range(self.k)], self.c) for r in range(self.N)]
+        cols = [[self.J[r][i] for r in range(self.N)] for i in range(self.k)]
+        self.U = [self._apply_W(col) for col in cols]  # U[i] = W J_i
+        self.g = [[_dot(self.U[i], cols[j]) for j in range(self.k)] for i in range(self.k)]
 
     def _apply_W(self, x: list) -> list:
         """``(B (x) I_b) x`` for a column ``x`` of length ``N``."""
         b, M = self.block, self.N // self.block
-        return [hy.sum([self.B[r][s] * x[s * b + beta] for s in range(M)]) for r in range(M) for beta in range(b)]
+        return [_dot([self.B[r][s] for s in range(M)], [x[s * b + beta] for s in range(M)])
+                for r in range(M) for beta in range(b)]
 
     def dot_W_col(self, i: int, x: list) -> hy.expression:
         """``(W J)_i . x``."""
-        return hy.sum([self.U[r][i] * x[r] for r in range(self.N)])
-
-    def Jc(self) -> list:
-        return [hy.sum([self.J[r, i] * self.c[i] for i in range(self.k)]) for r in range(self.N)]
+        return _dot(self.U[i], x)
 
 
 def _embedded_acceleration(P: _Pieces) -> list:
-    w = P.Jc()
-    dw = hy.diff_tensors(w, P.a, diff_order=1).jacobian
-    h = [hy.sum([dw[r, i] * P.c[i] for i in range(P.k)]) for r in range(P.N)]
-    rhs = [-P.dot_W_col(i, h) for i in range(P.k)]
-    return cholesky_solve(P.g, rhs)
+    return cholesky_solve(P.g, [-P.dot_W_col(i, P.h) for i in range(P.k)])
 
 
 def _christoffel_acceleration(P: _Pieces) -> list:
@@ -207,7 +231,7 @@ def transfer_cfunc(family: ChartFamily, fp_type: type = float):
     u = [hy.expression(f"u{r}") for r in range(P.N)]
     proj = cholesky_solve(P.g, [P.dot_W_col(i, u) for i in range(P.k)])
     energy = 0.5 * hy.sum([P.c[i] * P.g[i][j] * P.c[j] for i in range(P.k) for j in range(P.k)])
-    outs = list(P.z) + P.Jc() + proj + [energy]
+    outs = list(P.z) + list(P.Jc) + proj + [energy]
     return hy.cfunc(outs, P.a + P.c + u, compact_mode=True, fp_type=fp_type)
 
 

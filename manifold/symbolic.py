@@ -57,6 +57,15 @@ class ChartFamily(ABC):
     def point_expressions(self, a: Sequence[hy.expression], fp_type: type) -> list[hy.expression]:
         """``z(a; theta)`` with ``theta = par[0 .. n_params-1]``, constants exact in ``fp_type``."""
 
+    def point_jets(self, a: Sequence[hy.expression], c: Sequence[hy.expression], fp_type: type) -> list | None:
+        """``z`` as :class:`~manifold.jets.Jet` s along velocity ``c``, or ``None`` (the default).
+
+        A family that can run its formula on jets gets the geodesic equations
+        from one forward sweep instead of symbolic differentiation of the
+        expanded ``z``: much smaller for deep formulas.
+        """
+        return None
+
     @abstractmethod
     def quality_expressions(self, a: Sequence[hy.expression]) -> list[hy.expression]:
         """Expressions whose minimum is the chart quality (empty: the chart is global)."""
