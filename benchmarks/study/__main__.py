@@ -75,9 +75,10 @@ def conclusions(res: dict) -> str:
                    f"the demo measures e^(0.175 t) for n = 4).")
     lr = res["long_run"]["curves"]
     s = lr[report.OURS]["slope"]
-    law = "Brouwer-like (error ~ sqrt(t))" if s < 0.75 else "linear drift"
+    law = "closer to Brouwer's law (slope 0.5, error ~ sqrt(t)) than to linear drift (slope 1)" if s < 0.75 \
+        else "a linear drift"
     out.append(f"* **Energy error growth.** float64 Taylor in the atlas: log-log slope {s:.2f} of the running maximum "
-               f"over three decades, i.e. {law}; final {max(lr[report.OURS]['energy_error']):.0e}. "
+               f"over three decades, {law}; final {max(lr[report.OURS]['energy_error']):.0e}. "
                + "; ".join(f"{k}: slope {c['slope']:.2f}" + (" (failed)" if c["failed"] else "")
                            for k, c in lr.items() if k != report.OURS) + ".")
     drift = {k: c["drift"] for k, c in lr.items()}
