@@ -28,11 +28,15 @@ def _quality_cfunc(family: ChartFamily):
     return hy.cfunc(family.quality_expressions(a), a, compact_mode=True)
 
 
-def _events(family: ChartFamily, q_out: float) -> list:
-    """Terminal scipy events in heyoka's order: quality crossings, then wraps of periodic angles."""
+def _events(family: ChartFamily, q_out: float) -> tuple[list, int]:
+    """Terminal scipy events in heyoka's order: quality crossings, then wraps of periodic angles.
+
+    Returns the events and how many of them are quality crossings (none when
+    switching is off, ``q_out <= -1``: a cosine never falls below it).
+    """
     k, events = family.dim, []
-    qualities = family.quality_expressions(gs.chart_variables(k))
-    if qualities and q_out > -1:
+    qualities = family.quality_expressions(gs.chart_variables(k)) if q_out > -1 else []
+    if qualities:
         qcf = _quality_cfunc(family)
         for m in range(len(qualities)):
             events.append(_event(lambda t, y, m=m: qcf(y[:k])[m] - q_out, -1))

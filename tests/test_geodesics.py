@@ -245,3 +245,14 @@ def test_scipy_driver_follows_the_same_geodesic(method, rtol, tol):
     assert theirs.n_switches == ours.n_switches >= 1
     ts = np.linspace(0, 8, 17)
     assert np.abs(theirs(ts)[0] - ours(ts)[0]).max() <= tol
+
+
+def test_scipy_single_chart_wraps_instead_of_switching():
+    """With switching off the first scipy event is a wrap of t, not a quality crossing."""
+    from manifold.scipy_geodesics import solve_chart_exp_ode_scipy
+
+    chain = Chain(4, 2.9)
+    sol = solve_chart_exp_ode_scipy(chain.metric(), [0.2, 3.0], [0.1, 1.0], 2.0, chart=0, switching=False)
+    assert sol.n_switches == 0 and len(sol.segments) >= 2  # t passed pi and was wrapped
+    assert all(s.chart == 0 for s in sol.segments)
+    assert -np.pi <= sol.final_state[1][-1] <= np.pi
