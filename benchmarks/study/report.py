@@ -19,6 +19,12 @@ from .experiments import speed_ratio_at_equal_error  # noqa: E402
 OURS = "atlas Taylor (ours)"
 
 
+def _save(fig, path: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def _style(name: str) -> dict:
     return {"marker": "o", "lw": 2.5 if name.startswith("atlas Taylor") else 1.2, "ms": 4}
 
@@ -39,9 +45,7 @@ def fig_work_precision(wp: dict, path: Path) -> None:
     ax.set_title(f"work-precision, n = {wp['n']}, L = {wp['L']}, T = {wp['T']:g}")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="x-small")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def fig_long_run(lr: dict, path: Path) -> None:
@@ -60,9 +64,7 @@ def fig_long_run(lr: dict, path: Path) -> None:
     ax.set_title(f"long runs, n = {lr['n']}, L = {lr['L']}")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="x-small")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def fig_pole(pole: dict, path: Path) -> None:
@@ -94,9 +96,7 @@ def fig_pole(pole: dict, path: Path) -> None:
         ax.set_xlabel("t (pole at t = %.1f)" % (pole["T"] / 2))
         ax.grid(True, which="both", alpha=0.3)
     fig.suptitle(f"through a suspension pole, n = {pole['n']}, L = {pole['L']}, miss = {pole['miss']:g}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def fig_circle(circ: dict, path: Path) -> None:
@@ -113,9 +113,7 @@ def fig_circle(circ: dict, path: Path) -> None:
     ax.set_ylabel("Taylor step size")
     ax.set_title(f"n = 3 through t = ±pi/2 (grey: crossings of the chart angle at unit chart speed), L = {circ['L']}")
     ax.legend(fontsize="x-small")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def fig_size(size: dict, path: Path) -> None:
@@ -129,9 +127,7 @@ def fig_size(size: dict, path: Path) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     ax.set_title("cost against size")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def _wp_table(wp: dict) -> str:
