@@ -14,6 +14,9 @@ from hypothesis import strategies as st
 settings.register_profile(
     "default", deadline=None, max_examples=60, suppress_health_check=[HealthCheck.too_slow]
 )
+# ``pytest --hypothesis-profile=stress`` draws ten times as many cases; run it
+# after touching a chart or the solver (the default run is sized for CI).
+settings.register_profile("stress", parent=settings.get_profile("default"), max_examples=600)
 settings.load_profile("default")
 
 HALF_PI = np.pi / 2

@@ -10,7 +10,7 @@ from charts.seed_metric4 import metric4
 from linkage import Chain
 from manifold import Atlas, InducedMetric
 
-from .conftest import base_lengths, chart_parameters, folded_conditioning, rod_orders
+from .conftest import HALF_PI, base_lengths, chart_parameters, folded_conditioning, rod_orders
 
 chains = st.integers(3, 8).flatmap(lambda n: st.tuples(st.just(n), base_lengths(n)))
 
@@ -63,13 +63,35 @@ def test_transition_map_diff_maps_the_embedded_velocity(case, i, j, seed):
     assert abs(Ej - Ei) <= tol * Ei
 
 
-@given(st.floats(2.001, 3.999), st.floats(-1.5, 1.5), st.floats(-np.pi, np.pi))
+def _seed_rounding_bound(phi: float, t: float, L: float) -> float:
+    """Relative error the seed's ``metric4`` can carry from rounding alone.
+
+    Its inner elbow factor ``nu = cos t sqrt((4 - |p_2|^2) / cos^2 t)`` subtracts
+    two numbers near 4 whose difference is ``~ cos^2 t d alpha_in sin alpha_in``
+    (the seed's own limit), so it loses ``eps / (cos^2 t d alpha_in sin alpha_in)``;
+    100 eps is the constant observed over 2e4 samples (at most 40 eps).
+    """
+    alpha = np.arccos((L * L - 8) / (2 * L))
+    d = np.sqrt(L * L - 2 * L * np.cos(alpha * np.sin(phi)) + 1)
+    alpha_in = np.arccos((d * d - 3) / (2 * d))
+    return 100 * np.finfo(float).eps / (np.cos(t) ** 2 * d * alpha_in * np.sin(alpha_in))
+
+
+near_the_crossing = st.tuples(st.sampled_from([-1.0, 1.0]), st.floats(-4, -0.5)).map(
+    lambda s: s[0] * HALF_PI + 10.0 ** s[1])
+
+
+@given(st.floats(2.001, 3.999), st.floats(-1.5, 1.5),
+       st.one_of(st.floats(-np.pi, np.pi), near_the_crossing))
 def test_seed_closed_form_metric_agrees_with_pullback(L, phi, t):
-    """Agreement to 1e-10, except that near t = +-pi/2 the seed's own elbow height
-    ``cos t sqrt((4 - |p_2|^2) / cos^2 t)`` is a 0/0 ratio and loses ~eps / cos^2 t."""
-    chain = Chain(4, L)
-    g = chain.metric().local_metric(0, np.array([phi, t]))
-    seed_error = 1e-15 / max(np.cos(t) ** 2, 1e-12)
+    """Agreement to 1e-10 wherever the seed's own formula is accurate to 1e-4.
+
+    Near ``t = +-pi/2`` the seed's formula cancels (see ``_seed_rounding_bound``);
+    within ~1e-5 of the crossing it returns NaN.  Ours does not cancel there.
+    """
+    seed_error = _seed_rounding_bound(phi, t, L)
+    assume(seed_error <= 1e-4)
+    g = Chain(4, L).metric().local_metric(0, np.array([phi, t]))
     assert np.abs(g - metric4(phi, t, L)).max() <= max(1e-10, seed_error) * np.abs(g).max()
 
 
