@@ -209,9 +209,3 @@ class SuspensionAtlas(Atlas):
             ids = [f"shift{s}" for s in range(n)]
         super().__init__(charts, ids, switch_threshold)
         self.n, self.L = n, L
-
-    def qualities(self, p: ArrayLike) -> NDArray:
-        if self.n == 2:  # each point lies in exactly one chart of S^0
-            sheet = 1 if to_complex(np.asarray(p, dtype=float))[..., 0].imag >= 0 else -1
-            return np.array([1.0 if c.sheet == sheet else 0.0 for c in self.charts])
-        return super().qualities(p)

@@ -14,7 +14,7 @@ from collections.abc import Hashable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .chart import Chart
+from .chart import Chart, ChartDomainError
 
 
 class Atlas:
@@ -63,13 +63,39 @@ class Atlas:
             raise IndexError(f"chart index must be an integer in [0, {len(self.charts) - 1}], got {i!r}")
         return self.charts[i]
 
+    def _all_parameters(self, p: ArrayLike) -> tuple[list[NDArray | None], NDArray]:
+        params, q = [], []
+        for c in self.charts:
+            try:
+                a = c.get_parameters(p)
+            except ChartDomainError:  # p lies outside this chart's image
+                a = None
+            params.append(a)
+            q.append(-np.inf if a is None else c.quality(a))
+        if all(a is None for a in params):
+            raise ChartDomainError(f"point {np.asarray(p)} lies in no chart of the atlas")
+        return params, np.array(q)
+
     def qualities(self, p: ArrayLike) -> NDArray:
-        """Quality of every chart at point ``p``: array of shape ``(len(atlas),)``."""
-        return np.array([c.quality(c.get_parameters(p)) for c in self.charts])
+        """Quality of every chart at point ``p``: array of shape ``(len(atlas),)``.
+
+        ``-inf`` for a chart whose image does not contain ``p``.
+        """
+        return self._all_parameters(p)[1]
 
     def get_chart_index(self, p: ArrayLike) -> int:
         """Index of the chart of best quality at ``p`` (lowest index on ties)."""
-        return int(np.argmax(self.qualities(p)))
+        return self.best_chart(p)[0]
+
+    def best_chart(self, p: ArrayLike) -> tuple[int, NDArray]:
+        """``(i, a)``: the index ``get_chart_index(p)`` and the parameters of ``p`` in that chart.
+
+        One inverse per chart, where ``get_chart_index`` followed by
+        ``get_parameters`` would invert the chosen chart twice.
+        """
+        params, q = self._all_parameters(p)
+        i = int(np.argmax(q))
+        return i, params[i]
 
     def get_parameters(self, i: int, p: ArrayLike) -> NDArray:
         """Parameters of point ``p`` in chart ``i``."""

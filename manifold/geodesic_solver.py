@@ -6,8 +6,8 @@
 ``i`` heyoka's Taylor integrator runs until ``t_final`` or until a terminal
 event ``quality_i(a) = q_out`` (before the chart's singular set).  At the event
 the point ``p`` and embedded velocity ``v = J c`` are computed, the best chart
-``j`` is chosen (``atlas.get_chart_index``), ``a_j`` is found by the closed-form
-inverse polished by Newton steps in the working precision, and
+``j`` and its ``a_j`` come from ``atlas.best_chart`` (closed-form inverse,
+then polished by Newton steps in the working precision), and
 ``c_j = g_j^{-1} J_j^T K v`` (exact for the tangent ``v``, so energy is
 unchanged).  The best chart has quality far above ``q_out`` (hysteresis), so
 switches cannot chatter.
@@ -298,9 +298,10 @@ def _start(metric, p0, v0, t_final, fp_type, q_out, switching, project_velocity,
     sol = GeodesicSolution(metric, fp_type, (0.0, t_final))
     for k, ch in enumerate(atlas.charts):
         sol._numerics[k] = _ChartNumerics(ch, metric.K, q_out, fp_type)
-    i = atlas.get_chart_index(p0) if chart is None else chart  # validates p0 (closure, shape, finiteness)
+    # validates p0 (closure, shape, finiteness)
+    i, a = atlas.best_chart(p0) if chart is None else (chart, atlas.get_parameters(chart, p0))
     num = sol._numerics[i]
-    a = num.polish(atlas.get_parameters(i, p0).astype(fp_type), p0.astype(fp_type), _polish_steps(fp_type))
+    a = num.polish(a.astype(fp_type), p0.astype(fp_type), _polish_steps(fp_type))
     c = num.coefficients(a, v0.astype(fp_type))
     _, v_tan, E0 = num.point_velocity_energy(a[:, None], c[:, None])
     off = float(np.max(np.abs((v_tan[0] - v0.astype(fp_type)).astype(float))))
@@ -327,8 +328,8 @@ def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t, q_out: flo
     p, v, _ = num[i].point_velocity_energy(a[:, None], c[:, None])
     p, v = p[0], v[0]
     q_from = float(atlas.charts[i].quality(a.astype(float)))
-    j = atlas.get_chart_index(p.astype(float))
-    a_j = num[j].polish(atlas.get_parameters(j, p.astype(float)).astype(sol.fp_type), p, _polish_steps(sol.fp_type))
+    j, a_j = atlas.best_chart(p.astype(float))
+    a_j = num[j].polish(a_j.astype(sol.fp_type), p, _polish_steps(sol.fp_type))
     q_to = float(atlas.charts[j].quality(a_j.astype(float)))
     if q_to <= q_out:
         raise RuntimeError(f"no chart of quality above q_out = {q_out} at t = {t} (best {q_to:.3g})")

@@ -136,3 +136,28 @@ def test_metric_norm_and_inner_are_consistent():
     assert metric.norm(2, a, X) ** 2 == pytest.approx(2 * metric.kinetic_energy(2, a, X), rel=1e-14)
     v = atlas_v = metric.atlas.charts[2].tangent_vector(a, X)
     assert metric.ambient_kinetic_energy(atlas_v) == pytest.approx(chain.kinetic_energy(chain.from_point(v)), rel=1e-14)
+
+
+@given(chains.flatmap(lambda nL: st.tuples(st.just(nL), chart_parameters(nL[0]), rod_orders(nL[0]))))
+def test_best_chart_returns_the_best_index_and_its_parameters(case):
+    (n, L), a, order = case
+    atlas = SuspensionAtlas(n, L)
+    p = _random_point(n, L, a, order)
+    i, ai = atlas.best_chart(p)
+    assert i == int(np.argmax(atlas.qualities(p)))
+    np.testing.assert_array_equal(ai, atlas.get_parameters(i, p))
+
+
+def test_a_chart_that_does_not_contain_the_point_has_no_quality():
+    """S^0: each chart holds one of the two points; the other gets quality -inf."""
+    atlas = SuspensionAtlas(2, 1.5)
+    p = atlas.get_point(1, np.zeros(0))
+    assert atlas.qualities(p).tolist() == [-np.inf, 1.0]
+    assert atlas.best_chart(p)[0] == 1
+
+
+def test_a_point_outside_every_chart_is_an_error():
+    atlas = Atlas([SuspensionChart(2, 1.5, sheet=1)])
+    p = SuspensionChart(2, 1.5, sheet=-1).get_point(np.zeros(0))
+    with pytest.raises(ValueError, match="lies in no chart"):
+        atlas.best_chart(p)
