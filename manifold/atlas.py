@@ -64,16 +64,17 @@ class Atlas:
         return self.charts[i]
 
     def _all_parameters(self, p: ArrayLike) -> tuple[list[NDArray | None], NDArray]:
-        params, q = [], []
+        params, q, errors = [], [], []
         for c in self.charts:
             try:
                 a = c.get_parameters(p)
-            except ChartDomainError:  # p lies outside this chart's image
+            except ChartDomainError as e:  # p lies outside this chart's image
                 a = None
+                errors.append(e)
             params.append(a)
             q.append(-np.inf if a is None else c.quality(a))
-        if all(a is None for a in params):
-            raise ChartDomainError(f"point {np.asarray(p)} lies in no chart of the atlas")
+        if len(errors) == len(self.charts):  # e.g. p is not on the manifold: say why, from chart 0
+            raise ChartDomainError(f"point lies in no chart of the atlas: {errors[0]}") from errors[0]
         return params, np.array(q)
 
     def qualities(self, p: ArrayLike) -> NDArray:
