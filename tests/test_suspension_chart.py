@@ -10,7 +10,14 @@ from charts.chain_geometry import closure_residual, to_complex
 from charts.suspension_symbolic import evaluate_jacobian
 from manifold import ChartDomainError
 
-from .conftest import HALF_PI, base_lengths, chart_parameters, folded_conditioning, rod_orders
+from .conftest import (
+    HALF_PI,
+    base_lengths,
+    chart_parameters,
+    folded_conditioning,
+    parameter_rounding_floor,
+    rod_orders,
+)
 
 chains = st.integers(3, 8).flatmap(lambda n: st.tuples(st.just(n), base_lengths(n)))
 
@@ -40,12 +47,14 @@ def test_two_rods_are_the_two_elbows(L, sheet):
 
 @given(chains.flatmap(lambda nL: st.tuples(st.just(nL), chart_parameters(nL[0]), rod_orders(nL[0]))))
 def test_inverse_round_trip_where_the_chart_is_good(case):
+    """1e-12 where ``q >= 0.05``, or the chart's own rounding floor where that is larger
+    (several nested latitudes near their poles: one ulp of ``p`` moves ``t`` by 1e-11)."""
     (n, L), a, order = case
     chart = SuspensionChart(n, L, order)
     assume(chart.quality(a) >= 0.05)
     back = chart.get_parameters(chart.get_point(a))
     err = np.abs(_wrap(back - a))
-    assert err.max() <= 1e-12, (err, a)
+    assert err.max() <= max(1e-12, parameter_rounding_floor(chart, a)), (err, a)
 
 
 @given(chains.flatmap(lambda nL: st.tuples(st.just(nL), chart_parameters(nL[0]), rod_orders(nL[0]))))
