@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from manifold.precision import unit_roundoff
+
 
 @dataclass(frozen=True)
 class Cx:
@@ -97,9 +99,7 @@ def _sinc_terms(fp_type: type) -> int:
     The k-th term is at most ``(pi/2)^(2k) / (2k+1)!``; we stop when it falls
     below a tenth of the unit roundoff.
     """
-    eps = {np.longdouble: float(np.finfo(np.longdouble).eps)}.get(fp_type, 2.0**-52)
-    if fp_type not in (float, np.float64, np.longdouble):
-        eps = 2.0**-112  # real128
+    eps = 2 * unit_roundoff(fp_type)
     k, term = 0, 1.0
     while term > 0.1 * eps:
         k += 1
@@ -113,7 +113,8 @@ class HeyokaOps:
     Parameters
     ----------
     fp_type
-        ``float``, ``numpy.longdouble`` or ``heyoka.real128``: the precision the
+        ``float``, ``numpy.longdouble``, ``heyoka.real128`` or a
+        :class:`manifold.precision.MultiPrecision`: the precision the
         expressions will be compiled in.  Non-integer constants are created in
         this type (heyoka turns ``x / 20.`` into ``x * 0.05`` rounded to double,
         which would cap a real128 integration at double accuracy).

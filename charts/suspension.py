@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold.atlas import Atlas
 from manifold.chart import ChartDomainError
+from manifold.precision import as_fp
 from manifold.symbolic import SymbolicChart
 
 from . import suspension_formula as formula
@@ -74,7 +75,7 @@ class SuspensionChart(SymbolicChart):
     def offset(self, fp_type: type = float) -> NDArray:
         """``m = p(z = 0)``: the relabeling's constant part, a multiple of ``L`` (exact in ``fp_type``)."""
         unit = to_real(relabel_hinges(np.zeros(self.n - 1), self.order, 1.0)).real
-        return unit.astype(fp_type) * np.array(self.L, dtype=fp_type)
+        return as_fp(unit, fp_type) * as_fp(self.L, fp_type)
 
     def __repr__(self) -> str:
         return f"SuspensionChart(n={self.n}, L={self.L!r}, order={self.order.tolist()})"

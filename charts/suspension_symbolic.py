@@ -21,6 +21,7 @@ import numpy as np
 
 from manifold.geodesic_system import chart_variables
 from manifold.jets import Jet, JetOps
+from manifold.precision import as_fp, heyoka_fp_kwargs
 from manifold.symbolic import ChartFamily
 
 from . import suspension_formula as formula
@@ -84,15 +85,15 @@ def jacobian_cfunc(n: int, fp_type: type = float):
     z = hinge_expressions(a, fp_type)
     jac = hy.diff_tensors(z, a, diff_order=1).jacobian
     outs = list(z) + [jac[r, c] for r in range(len(z)) for c in range(len(a))]
-    return hy.cfunc(outs, a, compact_mode=True, fp_type=fp_type)
+    return hy.cfunc(outs, a, compact_mode=True, **heyoka_fp_kwargs(fp_type))
 
 
 def evaluate_jacobian(n: int, L: float, a: np.ndarray, fp_type: type = float) -> tuple[np.ndarray, np.ndarray]:
     """Hinges ``z`` (``(..., 2(n-1))``) and ``dz/da`` (``(..., 2(n-1), n-2)``) at parameters ``a``."""
-    a = np.asarray(a, dtype=fp_type)
+    a = as_fp(a, fp_type)
     batch = a.shape[:-1]
     flat = a.reshape(-1, n - 2).T.copy()
-    pars = np.full((1, flat.shape[1]), L, dtype=fp_type)
+    pars = as_fp(np.full((1, flat.shape[1]), L), fp_type)
     out = jacobian_cfunc(n, fp_type)(flat, pars=pars).T
     N = 2 * (n - 1)
     z = out[:, :N].reshape(*batch, N)

@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import geodesic_system as gs
 from .metric import InducedMetric
+from .precision import as_fp, is_double, unit_roundoff
 from .symbolic import SymbolicChart
 
 
@@ -62,35 +63,35 @@ class _ChartNumerics:
 
     def __init__(self, chart: SymbolicChart, K: NDArray, q_out: float, fp_type: type) -> None:
         self.fp, self.k, self.N = fp_type, chart.dim, chart.ambient_dim
-        self.M = chart.linear_map.astype(fp_type)
-        self.M_inv = chart.inverse_linear_map().astype(fp_type)
+        self.M = as_fp(chart.linear_map, fp_type)
+        self.M_inv = as_fp(chart.inverse_linear_map(), fp_type)
         self.m = chart.offset(fp_type)
         self.pars = gs.layout(chart.family).pack(chart.family_parameters, chart.core_metric(K), q_out, fp_type)
         self.cf = gs.transfer_cfunc(chart.family, fp_type)
 
     def _eval(self, a: NDArray, c: NDArray, u: NDArray) -> NDArray:
         """Batched transfer function: ``a``, ``c`` of shape ``(k, B)``, ``u`` of shape ``(N, B)``."""
-        args = np.concatenate([a, c, u]).astype(self.fp)
+        args = as_fp(np.concatenate([a, c, u]), self.fp)
         pars = self.pars[: self.cf.nparams, None]  # the cfunc does not use q_out
         return self.cf(args, pars=np.repeat(pars, args.shape[1], axis=1))
 
     def point_velocity_energy(self, a: NDArray, c: NDArray) -> tuple[NDArray, NDArray, NDArray]:
         """``p = M z(a) + m``, ``v = M J c`` and ``E`` for batches ``(k, B)``."""
-        out = self._eval(a, c, np.zeros((self.N, a.shape[1]), dtype=self.fp))
+        out = self._eval(a, c, np.zeros((self.N, a.shape[1])))
         z, Jc, E = out[: self.N], out[self.N : 2 * self.N], out[-1]
         return (self.M @ z).T + self.m, (self.M @ Jc).T, E
 
     def coefficients(self, a: NDArray, v: NDArray) -> NDArray:
         """``c = g^{-1} J^T K v``: K-orthogonal tangent coefficients of embedded ``v``."""
-        out = self._eval(a[:, None], np.zeros((self.k, 1), self.fp), (self.M_inv @ v)[:, None])
+        out = self._eval(a[:, None], np.zeros((self.k, 1)), (self.M_inv @ v)[:, None])
         return out[2 * self.N : 2 * self.N + self.k, 0]
 
     def polish(self, a: NDArray, p: NDArray, steps: int) -> NDArray:
         """Gauss-Newton steps ``a += g^{-1} J^T W (z* - z(a))`` toward ``p`` in the working precision."""
         target = self.M_inv @ (p - self.m)
         for _ in range(steps):
-            z = self._eval(a[:, None], np.zeros((self.k, 1), self.fp), np.zeros((self.N, 1), self.fp))[: self.N, 0]
-            out = self._eval(a[:, None], np.zeros((self.k, 1), self.fp), (target - z)[:, None])
+            z = self._eval(a[:, None], np.zeros((self.k, 1)), np.zeros((self.N, 1)))[: self.N, 0]
+            out = self._eval(a[:, None], np.zeros((self.k, 1)), (target - z)[:, None])
             a = a + out[2 * self.N : 2 * self.N + self.k, 0]
         return a
 
@@ -143,7 +144,7 @@ class GeodesicSolution:
     @property
     def relative_energy_error(self) -> float:
         """``max_t |E(t) - E(t0)| / E(t0)`` over the recorded energies."""
-        E = np.array(self.energies, dtype=self.fp_type)
+        E = np.array(self.energies)
         return float(np.max(np.abs(E - E[0])) / E[0]) if E[0] != 0 else float(np.max(np.abs(E)))
 
     def _segment_index(self, t: float) -> int:
@@ -205,7 +206,10 @@ def solve_chart_exp_ode(
     t_final
         Final time, finite; negative integrates backward.
     fp_type
-        ``float`` (default), ``numpy.longdouble`` or ``heyoka.real128``.
+        ``float`` (default), ``numpy.longdouble``, ``heyoka.real128`` or
+        :class:`manifold.precision.MultiPrecision` ``(bits)`` (heyoka's ``real``).
+        The whole run -- integrator, transition maps, energies, ``sol(t)`` --
+        is in this type.
     tol
         Taylor integrator tolerance; default the unit roundoff of ``fp_type``.
     q_out
@@ -239,7 +243,7 @@ def solve_chart_exp_ode(
     family = atlas.charts[0].family
     ta = gs.integrator(family, fp_type, tol, form, backward=float(t_final) < 0)
     n_quality = len(family.quality_expressions(gs.chart_variables(family.dim)))
-    two_pi = 8 * np.arctan(np.array(1, dtype=fp_type))  # 2 pi exact to fp_type
+    two_pi = 8 * np.arctan(as_fp(1.0, fp_type))  # 2 pi exact to fp_type
     t = fp_type(0.0)
     while True:
         ta.state[:] = np.concatenate([a, c])
@@ -278,6 +282,7 @@ def _start(metric, p0, v0, t_final, fp_type, q_out, switching, project_velocity,
     any cosine (-2) when ``switching`` is off.
     """
     atlas = metric.atlas
+    unit_roundoff(fp_type)  # raises on an unknown fp_type
     if atlas.dim == 0:
         raise ValueError("a 0-dimensional manifold has no geodesic motion")
     if not all(isinstance(ch, SymbolicChart) for ch in atlas.charts):
@@ -301,10 +306,10 @@ def _start(metric, p0, v0, t_final, fp_type, q_out, switching, project_velocity,
     # validates p0 (closure, shape, finiteness)
     i, a = atlas.best_chart(p0) if chart is None else (chart, atlas.get_parameters(chart, p0))
     num = sol._numerics[i]
-    a = num.polish(a.astype(fp_type), p0.astype(fp_type), _polish_steps(fp_type))
-    c = num.coefficients(a, v0.astype(fp_type))
+    a = num.polish(as_fp(a, fp_type), as_fp(p0, fp_type), _polish_steps(fp_type))
+    c = num.coefficients(a, as_fp(v0, fp_type))
     _, v_tan, E0 = num.point_velocity_energy(a[:, None], c[:, None])
-    off = float(np.max(np.abs((v_tan[0] - v0.astype(fp_type)).astype(float))))
+    off = float(np.max(np.abs((v_tan[0] - as_fp(v0, fp_type)).astype(float))))
     if off > tangent_tol * max(1.0, float(np.max(np.abs(v0)))) and not project_velocity:
         raise ValueError(
             f"v0 is not tangent at p0: it is {off:.3g} away from the tangent space "
@@ -319,7 +324,7 @@ def _start(metric, p0, v0, t_final, fp_type, q_out, switching, project_velocity,
 
 def _polish_steps(fp_type: type) -> int:
     """Newton steps after the float64 inverse: none in float64, two (quadratic convergence) beyond."""
-    return 0 if fp_type in (float, np.float64) else 2
+    return 0 if is_double(fp_type) else 2
 
 
 def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t, q_out: float):
@@ -329,7 +334,7 @@ def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t, q_out: flo
     p, v = p[0], v[0]
     q_from = float(atlas.charts[i].quality(a.astype(float)))
     j, a_j = atlas.best_chart(p.astype(float))
-    a_j = num[j].polish(a_j.astype(sol.fp_type), p, _polish_steps(sol.fp_type))
+    a_j = num[j].polish(as_fp(a_j, sol.fp_type), p, _polish_steps(sol.fp_type))
     q_to = float(atlas.charts[j].quality(a_j.astype(float)))
     if q_to <= q_out:
         raise RuntimeError(f"no chart of quality above q_out = {q_out} at t = {t} (best {q_to:.3g})")

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .expression_linalg import cholesky_solve
+from .precision import as_fp, event_fp_kwargs, heyoka_fp_kwargs
 from .symbolic import ChartFamily
 
 FORMS = ("embedded", "christoffel")
@@ -63,7 +64,7 @@ class Layout:
         """Parameter vector for ``theta``, ``B`` and ``q_out``."""
         iu = np.triu_indices(self.n_points)
         vals = np.concatenate([np.asarray(theta, dtype=float), np.asarray(B, dtype=float)[iu], [q_out]])
-        return vals.astype(fp_type)
+        return as_fp(vals, fp_type)
 
 
 def layout(family: ChartFamily) -> Layout:
@@ -184,11 +185,12 @@ def switch_events(family: ChartFamily, fp_type: type, backward: bool = False) ->
     up, down = hy.event_direction.positive, hy.event_direction.negative
     if backward:
         up, down = down, up
-    events = [hy.t_event(e - q_out, direction=down, fp_type=fp_type) for e in family.quality_expressions(P.a)]
+    fp = event_fp_kwargs(fp_type)
+    events = [hy.t_event(e - q_out, direction=down, **fp) for e in family.quality_expressions(P.a)]
     for i in family.periodic:
         events += [
-            hy.t_event(P.a[i] - hy.pi, direction=up, fp_type=fp_type),
-            hy.t_event(P.a[i] + hy.pi, direction=down, fp_type=fp_type),
+            hy.t_event(P.a[i] - hy.pi, direction=up, **fp),
+            hy.t_event(P.a[i] + hy.pi, direction=down, **fp),
         ]
     return events
 
@@ -210,11 +212,11 @@ def integrator(
     kw = {} if tol is None else {"tol": fp_type(tol)}
     return hy.taylor_adaptive(
         sys,
-        np.zeros(2 * family.dim, dtype=fp_type),
+        as_fp(np.zeros(2 * family.dim), fp_type),
         compact_mode=True,
-        fp_type=fp_type,
         t_events=switch_events(family, fp_type, backward),
         **kw,
+        **heyoka_fp_kwargs(fp_type),
     )
 
 
@@ -232,7 +234,7 @@ def transfer_cfunc(family: ChartFamily, fp_type: type = float):
     proj = cholesky_solve(P.g, [P.dot_W_col(i, u) for i in range(P.k)])
     energy = 0.5 * hy.sum([P.c[i] * P.g[i][j] * P.c[j] for i in range(P.k) for j in range(P.k)])
     outs = list(P.z) + list(P.Jc) + proj + [energy]
-    return hy.cfunc(outs, P.a + P.c + u, compact_mode=True, fp_type=fp_type)
+    return hy.cfunc(outs, P.a + P.c + u, compact_mode=True, **heyoka_fp_kwargs(fp_type))
 
 
 @lru_cache(maxsize=None)
@@ -240,4 +242,5 @@ def acceleration_cfunc(family: ChartFamily, fp_type: type = float, form: str = "
     """Compiled right-hand side ``(a, c) -> c'`` (for scipy integrators and checks)."""
     sys = geodesic_equations(family, fp_type, form)
     P = _pieces(family, fp_type)
-    return hy.cfunc([rhs for _, rhs in sys[family.dim:]], P.a + P.c, compact_mode=True, fp_type=fp_type)
+    rhs = [rhs for _, rhs in sys[family.dim:]]
+    return hy.cfunc(rhs, P.a + P.c, compact_mode=True, **heyoka_fp_kwargs(fp_type))

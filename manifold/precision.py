@@ -1,0 +1,82 @@
+"""Floating types of the compiled solvers, heyoka's multiprecision ``real`` included.
+
+An ``fp_type`` is ``float``, ``numpy.longdouble``, ``heyoka.real128`` or a
+:class:`MultiPrecision` (heyoka's ``real`` at a fixed number of bits).  Every
+``fp_type`` converts a scalar by a call, ``fp_type(x)``; arrays go through
+:func:`as_fp`, and heyoka's constructors take :func:`heyoka_fp_kwargs`.
+heyoka rejects a ``real`` whose precision differs from its integrator's, so
+multiprecision arrays are built element by element at exactly ``bits``.
+"""
+
+from __future__ import annotations
+
+import heyoka as hy
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+class MultiPrecision:
+    """heyoka's arbitrary-precision ``real`` with ``bits`` bits of significand.
+
+    Usable wherever the solvers take an ``fp_type``:
+    ``solve_chart_exp_ode(..., fp_type=MultiPrecision(256))``.  Its
+    ``numpy`` dtype is ``heyoka.real``; its unit roundoff is ``2**-bits``.
+    """
+
+    def __init__(self, bits: int) -> None:
+        if not isinstance(bits, (int, np.integer)) or isinstance(bits, bool) or not 24 <= bits <= 1000:
+            raise ValueError(f"bits must be an integer in [24, 1000], got {bits!r}")
+        self.bits = int(bits)
+
+    def __call__(self, x) -> hy.real:
+        return hy.real(x, self.bits)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, MultiPrecision) and other.bits == self.bits
+
+    def __hash__(self) -> int:
+        return hash(("MultiPrecision", self.bits))
+
+    def __repr__(self) -> str:
+        return f"MultiPrecision({self.bits})"
+
+
+def as_fp(x: ArrayLike, fp_type) -> NDArray:
+    """``x`` as an array of ``fp_type`` (multiprecision: every element at exactly ``bits``)."""
+    if isinstance(fp_type, MultiPrecision):
+        x = np.asarray(x)
+        out = np.empty(x.shape, dtype=hy.real)
+        for idx in np.ndindex(x.shape):
+            out[idx] = fp_type(x[idx])
+        return out
+    return np.asarray(x).astype(fp_type)
+
+
+def heyoka_fp_kwargs(fp_type) -> dict:
+    """Keyword arguments selecting ``fp_type`` in heyoka's integrators, events and cfuncs."""
+    if isinstance(fp_type, MultiPrecision):
+        return {"fp_type": hy.real, "prec": fp_type.bits}
+    return {"fp_type": fp_type}
+
+
+def event_fp_kwargs(fp_type) -> dict:
+    """Keyword arguments selecting ``fp_type`` in ``heyoka.t_event`` (which takes no precision)."""
+    return {"fp_type": hy.real if isinstance(fp_type, MultiPrecision) else fp_type}
+
+
+def unit_roundoff(fp_type) -> float:
+    """``2**-p`` for a ``p``-bit significand: 2**-53 (float), 2**-64 (x86 long double), 2**-113, 2**-bits."""
+    if isinstance(fp_type, MultiPrecision):
+        return 2.0**-fp_type.bits
+    if fp_type in (float, np.float64, np.longdouble):
+        return float(np.finfo(fp_type).eps) / 2
+    if fp_type is getattr(hy, "real128", None):
+        return 2.0**-113
+    raise TypeError(
+        f"fp_type must be float, numpy.longdouble, heyoka.real128 or MultiPrecision(bits), got {fp_type!r}"
+    )
+
+
+def is_double(fp_type) -> bool:
+    """True for IEEE double (``float`` or ``numpy.float64``)."""
+    return fp_type in (float, np.float64)

@@ -1,0 +1,68 @@
+"""Floating types of the compiled solvers: heyoka's multiprecision ``real`` end to end."""
+
+import heyoka as hy
+import numpy as np
+import pytest
+
+from linkage import Chain
+from manifold.geodesic_solver import solve_chart_exp_ode
+from manifold.precision import MultiPrecision, as_fp, unit_roundoff
+
+
+def start(chain: Chain, a, c):
+    atlas = chain.atlas()
+    a = np.asarray(a, float)
+    return atlas.get_point(0, a), atlas.charts[0].tangent_vector(a, np.asarray(c, float))
+
+
+@pytest.mark.parametrize("bits", [0, 23, 1001, 2.5, True, "64"])
+def test_bad_precision_is_named_with_its_range(bits):
+    with pytest.raises(ValueError, match=r"\[24, 1000\]"):
+        MultiPrecision(bits)
+
+
+def test_multiprecision_arrays_hold_exactly_the_requested_bits():
+    fp = MultiPrecision(200)
+    x = as_fp(np.array([[0.1, 2.0], [1e-300, -3.5]]), fp)
+    assert x.shape == (2, 2) and {v.prec for v in x.ravel()} == {200}
+    assert [float(v) for v in x.ravel()] == [0.1, 2.0, 1e-300, -3.5]  # doubles convert exactly
+
+
+def test_unit_roundoff():
+    assert unit_roundoff(float) == 2.0**-53
+    assert unit_roundoff(hy.real128) == 2.0**-113
+    assert unit_roundoff(MultiPrecision(300)) == 2.0**-300
+    with pytest.raises(TypeError, match="float32"):
+        unit_roundoff(np.float32)
+
+
+def test_solver_rejects_an_unknown_floating_type():
+    chain = Chain(3, 1.5)
+    p0, v0 = start(chain, [0.3], [1.0])
+    with pytest.raises(TypeError, match="fp_type must be"):
+        solve_chart_exp_ode(chain.metric(), p0, v0, 1.0, fp_type=np.float32)
+
+
+def test_multiprecision_circle_chain_agrees_with_long_double():
+    """n = 3 in 160-bit ``real``: energy to ~1e-45, the path equal to the long-double one to its accuracy."""
+    chain = Chain(3, 2.2)
+    p0, v0 = start(chain, [0.4], [1.3])
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 3.0, fp_type=MultiPrecision(160))
+    ref = solve_chart_exp_ode(chain.metric(), p0, v0, 3.0, fp_type=np.longdouble)
+    assert sol.relative_energy_error <= 1e-44
+    p, _ = sol(2.0)
+    assert {v.prec for v in p.ravel()} == {160}
+    assert np.abs(p.astype(float) - ref(2.0)[0].astype(float)).max() <= 1e-15
+
+
+@pytest.mark.slow
+def test_multiprecision_crosses_a_chart_switch_and_agrees_with_real128():
+    """n = 4 through a switch in 256-bit ``real``: energy to 1e-70, end point equal to real128's to 1e-30."""
+    chain = Chain(4, 3.2)
+    p0, v0 = start(chain, [0.3, 0.4], [0.5, -0.7])
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, fp_type=MultiPrecision(256))
+    ref = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, fp_type=hy.real128)
+    assert sol.n_switches >= 1 and ref.n_switches == sol.n_switches
+    assert sol.relative_energy_error <= 1e-70
+    diff = sol.end_state()[0] - ref.end_state()[0].astype(hy.real)
+    assert max(abs(float(d)) for d in diff) <= 1e-30
