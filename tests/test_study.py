@@ -8,6 +8,7 @@ import pytest
 
 from benchmarks.study import experiments as X
 from benchmarks.study.report import OURS
+from manifold.precision import unit_roundoff
 
 
 @pytest.fixture(scope="module")
@@ -44,3 +45,12 @@ def test_plain_sinc_breaks_the_taylor_integrator_and_the_polynomial_does_not():
     assert res["polynomial sinc (ours)"]["status"] == "reached T"
     assert res["plain sin(x)/x"]["status"].startswith("failed")
     assert res["plain sin(x)/x, off the pole"]["status"] != "reached T"
+
+
+def test_each_precision_conserves_energy_to_its_own_roundoff():
+    """The cost-of-precision table: energy error within 1000 unit roundoffs of each type, in CI's quick mode."""
+    rows = X.precision_cost(T=2.0, quick=True)
+    fp_of = {label: fp for label, fp, _ in X.PRECISIONS}
+    assert [r["precision"] for r in rows] == ["float64", "long double", "real128", "real 113 bits"]
+    for r in rows:
+        assert r["energy_error"] <= 1e3 * unit_roundoff(fp_of[r["precision"]]), r

@@ -1,4 +1,4 @@
-"""One command for the whole study: ``python -m benchmarks.study [--quick | --full] [--out DIR]``.
+"""One command for the whole study: ``python -m benchmarks.study [--quick | --full] [--out DIR] [--only S,...]``.
 
 ``--quick`` (minutes; what CI runs through the tests) uses n = 4, short
 horizons and a long-double reference; ``--full`` (the docs page; about half an
@@ -25,32 +25,43 @@ FULL = {"wp": [(4, 100.0), (6, 100.0)], "long_T": 1e4, "size": list(range(3, 11)
         "misses": [0.0, 1e-6], "prec_T": 10.0}
 
 
-def run(mode: str) -> dict:
+SECTIONS = ("work_precision", "long_run", "poles", "circle", "precision", "size")
+
+
+def run(mode: str, only: tuple[str, ...] = SECTIONS, previous: dict | None = None) -> dict:
+    """Run the study's ``only`` sections; the others are kept from ``previous`` results."""
     cfg = QUICK if mode == "quick" else FULL
     quick = mode == "quick"
     hy.llvm_state.set_diskcache_enabled(False)  # compile times are part of what we measure
-    results = {"mode": mode, "cores": os.cpu_count()}
+    results = dict(previous or {})
+    results.update({"mode": mode, "cores": os.cpu_count()})
     stamp = time.perf_counter()
 
     def step(label: str) -> None:
         print(f"[{time.perf_counter() - stamp:7.1f} s] {label}", flush=True)
 
-    results["work_precision"] = []
-    for n, T in cfg["wp"]:
-        step(f"work-precision n = {n}, T = {T:g}")
-        results["work_precision"].append(X.work_precision(n, T, quick=quick, repeats=3 if quick else 2))
-    step(f"long runs to T = {cfg['long_T']:g}")
-    results["long_run"] = X.long_run(4, cfg["long_T"], quick=quick)
-    results["poles"] = []
-    for miss in cfg["misses"]:
-        step(f"through a pole, miss = {miss:g}")
-        results["poles"].append(X.through_pole(miss=miss))
-    step("through t = +-pi/2")
-    results["circle"] = X.through_circle_pole()
-    step("precision")
-    results["precision"] = X.precision_cost(T=cfg["prec_T"], quick=quick)
-    step(f"size n = {cfg['size']}")
-    results["size"] = X.size_cost(cfg["size"], T=cfg["size_T"])
+    if "work_precision" in only:
+        results["work_precision"] = []
+        for n, T in cfg["wp"]:
+            step(f"work-precision n = {n}, T = {T:g}")
+            results["work_precision"].append(X.work_precision(n, T, quick=quick, repeats=3 if quick else 2))
+    if "long_run" in only:
+        step(f"long runs to T = {cfg['long_T']:g}")
+        results["long_run"] = X.long_run(4, cfg["long_T"], quick=quick)
+    if "poles" in only:
+        results["poles"] = []
+        for miss in cfg["misses"]:
+            step(f"through a pole, miss = {miss:g}")
+            results["poles"].append(X.through_pole(miss=miss))
+    if "circle" in only:
+        step("through t = +-pi/2")
+        results["circle"] = X.through_circle_pole()
+    if "precision" in only:
+        step("precision")
+        results["precision"] = X.precision_cost(T=cfg["prec_T"], quick=quick)
+    if "size" in only:
+        step(f"size n = {cfg['size']}")
+        results["size"] = X.size_cost(cfg["size"], T=cfg["size_T"])
     results["conclusions"] = conclusions(results)
     step("done")
     return results
@@ -114,6 +125,8 @@ def main() -> None:
     g.add_argument("--full", action="store_true", help="the docs page (default)")
     parser.add_argument("--out", type=Path, default=None, help="output folder (default docs/ for --full, out/study-quick for --quick)")
     parser.add_argument("--render", type=Path, default=None, help="re-render figures and page from a benchmarks.json")
+    parser.add_argument("--only", default=None,
+                        help=f"comma-separated sections to re-run, the rest kept from OUT/benchmarks.json: {', '.join(SECTIONS)}")
     args = parser.parse_args()
     mode = "quick" if args.quick else "full"
     out = args.out or (Path("docs") if mode == "full" else Path("out/study-quick"))
@@ -121,6 +134,15 @@ def main() -> None:
     if args.render:
         results = json.loads(args.render.read_text())
         results["conclusions"] = conclusions(results)
+    elif args.only:
+        only = tuple(args.only.split(","))
+        unknown = sorted(set(only) - set(SECTIONS))
+        if unknown:
+            parser.error(f"unknown sections {unknown}; choose from {', '.join(SECTIONS)}")
+        previous = json.loads((out / "benchmarks.json").read_text())
+        if previous["mode"] != mode:
+            parser.error(f"{out / 'benchmarks.json'} holds a {previous['mode']} run, not {mode}")
+        results = run(mode, only, previous)
     else:
         results = run(mode)
     page = report.write(results, out)

@@ -6,7 +6,7 @@
 * :func:`through_pole`: a geodesic aimed through a suspension pole;
 * :func:`through_circle_pole`: the circle level's ``t = +-pi/2`` with the
   plain ``sin(x)/x`` against the polynomial ``sinc``;
-* :func:`precision_cost`: float64, long double, real128;
+* :func:`precision_cost`: float64, long double, real128, heyoka's ``real``;
 * :func:`size_cost`: compile time and run time against ``n``.
 """
 
@@ -21,6 +21,7 @@ from charts import backends, suspension_formula
 from linkage import Chain
 from manifold import geodesic_system as gs
 from manifold.geodesic_solver import solve_chart_exp_ode
+from manifold.precision import MultiPrecision
 from manifold.symbolic import ChartFamily
 
 from . import methods as M
@@ -246,19 +247,28 @@ def through_circle_pole(L: float = 1.6, T: float = 20.0, max_steps: int = 20000)
     return out
 
 
+#: (label, fp_type, fraction of T): multiprecision runs get shorter horizons (their cost grows fast with bits).
+PRECISIONS = [("float64", float, 1.0), ("long double", np.longdouble, 1.0), ("real128", hy.real128, 1.0),
+              ("real 113 bits", MultiPrecision(113), 1.0), ("real 256 bits", MultiPrecision(256), 0.2),
+              ("real 512 bits", MultiPrecision(512), 0.05)]
+
+
 def precision_cost(n: int = 4, T: float = 10.0, quick: bool = False) -> list[dict]:
-    """Wall time and energy error of the atlas solver in float64, long double and real128."""
+    """Wall time and energy error of the atlas solver in float64, long double, real128 and heyoka's ``real``.
+
+    Quick mode halves the extended-precision horizons and stops at 113 bits.
+    """
     chain, p0, v0 = generic_start(n, seed=3)
     rows = []
-    for label, fp in [("float64", float), ("long double", np.longdouble), ("real128", hy.real128)]:
+    for label, fp, frac in PRECISIONS[:4] if quick else PRECISIONS:
+        T_run = T * frac / (2 if quick and fp not in (float, np.longdouble) else 1)
         solve_chart_exp_ode(chain.metric(), p0, v0, 0.01, fp_type=fp)  # compile outside the timing
         t0 = time.perf_counter()
-        sol = solve_chart_exp_ode(chain.metric(), p0, v0, T if not (quick and fp is hy.real128) else T / 2,
-                                  fp_type=fp, dense=False)
+        sol = solve_chart_exp_ode(chain.metric(), p0, v0, T_run, fp_type=fp, dense=False)
         wall = time.perf_counter() - t0
-        rows.append({"precision": label, "T": float(sol.t_span[1]), "wall": wall, "steps": sol.n_steps,
+        rows.append({"precision": label, "T": T_run, "wall": wall, "steps": sol.n_steps,
                      "switches": sol.n_switches, "energy_error": sol.relative_energy_error,
-                     "wall_per_time": wall / float(sol.t_span[1])})
+                     "wall_per_time": wall / T_run})
     return rows
 
 

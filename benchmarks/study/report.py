@@ -154,7 +154,8 @@ def write(results: dict, out: Path) -> Path:
     figs.mkdir(exist_ok=True)
     (out / "benchmarks.json").write_text(json.dumps(results, indent=1, default=float))
     parts = [f"# Speed and accuracy study ({results['mode']} mode)\n",
-             f"Regenerate: `python -m benchmarks.study --{results['mode']}`. Machine: {platform.machine()}, "
+             f"Regenerate: `python -m benchmarks.study --{results['mode']}` (one section: add `--only precision`, "
+             f"keeping the others from `benchmarks.json`). Machine: {platform.machine()}, "
              f"{results['cores']} cores, Python {platform.python_version()}, numpy {np.__version__}, "
              f"scipy {scipy.__version__}, heyoka {hy.__version__}. Wall times are one run each on a shared "
              "machine: read the ratios, not the seconds.\n"]
