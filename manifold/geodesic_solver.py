@@ -45,6 +45,7 @@ class ChartSwitch:
     to_chart: int
     quality_from: float
     quality_to: float
+    point_gap: float  # max |p_after - p_before| in the working precision: the transfer's own error
 
 
 @dataclass
@@ -86,13 +87,24 @@ class _ChartNumerics:
         out = self._eval(a[:, None], np.zeros((self.k, 1)), (self.M_inv @ v)[:, None])
         return out[2 * self.N : 2 * self.N + self.k, 0]
 
-    def polish(self, a: NDArray, p: NDArray, steps: int) -> NDArray:
-        """Gauss-Newton steps ``a += g^{-1} J^T W (z* - z(a))`` toward ``p`` in the working precision."""
+    def polish(self, a: NDArray, p: NDArray) -> NDArray:
+        """Gauss-Newton steps ``a += g^{-1} J^T W (z* - z(a))`` toward ``p`` in the working precision.
+
+        None in float64, where the closed-form inverse is already backward
+        stable.  Beyond, steps run until one is below 4 unit roundoffs: from a
+        point on the manifold (a switch) they converge quadratically, from a
+        float64 start off it by ~1e-16 per step, so 512 bits need ~10.
+        """
+        if is_double(self.fp):
+            return a
+        u = unit_roundoff(self.fp)
         target = self.M_inv @ (p - self.m)
-        for _ in range(steps):
+        for _ in range(2 + int(np.ceil(-np.log2(u) / 50))):
             z = self._eval(a[:, None], np.zeros((self.k, 1)), np.zeros((self.N, 1)))[: self.N, 0]
-            out = self._eval(a[:, None], np.zeros((self.k, 1)), (target - z)[:, None])
-            a = a + out[2 * self.N : 2 * self.N + self.k, 0]
+            step = self._eval(a[:, None], np.zeros((self.k, 1)), (target - z)[:, None])[2 * self.N : 2 * self.N + self.k, 0]
+            a = a + step
+            if float(np.max(np.abs(step))) <= 4 * u * max(1.0, float(np.max(np.abs(a)))):
+                break
         return a
 
 
@@ -211,7 +223,7 @@ def solve_chart_exp_ode(
         The whole run -- integrator, transition maps, energies, ``sol(t)`` --
         is in this type.
     tol
-        Taylor integrator tolerance; default the unit roundoff of ``fp_type``.
+        Taylor integrator tolerance; default heyoka's, the machine epsilon of ``fp_type``.
     q_out
         Switch threshold on chart quality, in ``(0, 1)``; default ``atlas.switch_threshold``.
     switching
@@ -306,7 +318,7 @@ def _start(metric, p0, v0, t_final, fp_type, q_out, switching, project_velocity,
     # validates p0 (closure, shape, finiteness)
     i, a = atlas.best_chart(p0) if chart is None else (chart, atlas.get_parameters(chart, p0))
     num = sol._numerics[i]
-    a = num.polish(as_fp(a, fp_type), as_fp(p0, fp_type), _polish_steps(fp_type))
+    a = num.polish(as_fp(a, fp_type), as_fp(p0, fp_type))
     c = num.coefficients(a, as_fp(v0, fp_type))
     _, v_tan, E0 = num.point_velocity_energy(a[:, None], c[:, None])
     off = float(np.max(np.abs((v_tan[0] - as_fp(v0, fp_type)).astype(float))))
@@ -322,11 +334,6 @@ def _start(metric, p0, v0, t_final, fp_type, q_out, switching, project_velocity,
     return sol, i, a, c, q_out
 
 
-def _polish_steps(fp_type: type) -> int:
-    """Newton steps after the float64 inverse: none in float64, two (quadratic convergence) beyond."""
-    return 0 if is_double(fp_type) else 2
-
-
 def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t, q_out: float):
     """Move the state ``(a, c)`` of chart ``i`` to the best chart; log the switch."""
     atlas, num = sol.metric.atlas, sol._numerics
@@ -334,11 +341,13 @@ def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t, q_out: flo
     p, v = p[0], v[0]
     q_from = float(atlas.charts[i].quality(a.astype(float)))
     j, a_j = atlas.best_chart(p.astype(float))
-    a_j = num[j].polish(as_fp(a_j, sol.fp_type), p, _polish_steps(sol.fp_type))
+    a_j = num[j].polish(as_fp(a_j, sol.fp_type), p)
     q_to = float(atlas.charts[j].quality(a_j.astype(float)))
     if q_to <= q_out:
         raise RuntimeError(f"no chart of quality above q_out = {q_out} at t = {t} (best {q_to:.3g})")
-    sol.switches.append(ChartSwitch(float(t), i, j, q_from, q_to))
+    p_j = num[j].point_velocity_energy(a_j[:, None], np.zeros((len(a_j), 1)))[0][0]
+    gap = float(np.max(np.abs(p_j - p)))
+    sol.switches.append(ChartSwitch(float(t), i, j, q_from, q_to, gap))
     return j, a_j, num[j].coefficients(a_j, v)
 
 
