@@ -97,7 +97,7 @@ def _sinc_terms(fp_type: type) -> int:
     """Number of series terms of ``sin(y)/y`` exact to ``fp_type`` for ``y`` in ``[0, pi/2]``.
 
     The k-th term is at most ``(pi/2)^(2k) / (2k+1)!``; we stop when it falls
-    below a tenth of the unit roundoff.
+    below a tenth of the machine epsilon (twice the unit roundoff).
     """
     eps = 2 * unit_roundoff(fp_type)
     k, term = 0, 1.0

@@ -74,7 +74,7 @@ class Atlas:
             params.append(a)
             q.append(-np.inf if a is None else c.quality(a))
         if len(errors) == len(self.charts):  # e.g. p is not on the manifold: say why, from chart 0
-            raise ChartDomainError(f"point lies in no chart of the atlas: {errors[0]}") from errors[0]
+            raise ChartDomainError(f"point {np.asarray(p)} lies in no chart of the atlas: {errors[0]}") from errors[0]
         return params, np.array(q)
 
     def qualities(self, p: ArrayLike) -> NDArray:

@@ -203,7 +203,7 @@ def integrator(
 
     ``backward=True`` mirrors the event directions for integration toward negative times.
 
-    ``tol=None`` uses the unit roundoff of ``fp_type``.  The integrator is shared:
+    ``tol=None`` uses heyoka's default, the machine epsilon of ``fp_type``.  The integrator is shared:
     callers set ``state``, ``time`` and ``pars`` before each use.  ``pars`` has
     only as many entries as the system uses (``q_out`` is unused by a family
     without switch events): fill it with ``Layout.pack(...)[:len(ta.pars)]``.

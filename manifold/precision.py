@@ -29,6 +29,8 @@ class MultiPrecision:
         self.bits = int(bits)
 
     def __call__(self, x) -> hy.real:
+        if isinstance(x, (np.integer, np.bool_)):  # heyoka.real takes Python ints, not numpy's
+            x = int(x)
         return hy.real(x, self.bits)
 
     def __eq__(self, other: object) -> bool:

@@ -131,6 +131,8 @@ def main() -> None:
     mode = "quick" if args.quick else "full"
     out = args.out or (Path("docs") if mode == "full" else Path("out/study-quick"))
     np.seterr(all="ignore")  # failing methods are part of the study
+    if args.render and args.only:
+        parser.error("--render re-renders a finished run; it takes no --only")
     if args.render:
         results = json.loads(args.render.read_text())
         results["conclusions"] = conclusions(results)
@@ -139,6 +141,8 @@ def main() -> None:
         unknown = sorted(set(only) - set(SECTIONS))
         if unknown:
             parser.error(f"unknown sections {unknown}; choose from {', '.join(SECTIONS)}")
+        if not (out / "benchmarks.json").is_file():
+            parser.error(f"--only needs a previous run in {out / 'benchmarks.json'}: run without --only first")
         previous = json.loads((out / "benchmarks.json").read_text())
         if previous["mode"] != mode:
             parser.error(f"{out / 'benchmarks.json'} holds a {previous['mode']} run, not {mode}")
