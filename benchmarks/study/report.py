@@ -25,6 +25,19 @@ def _save(fig, path: Path) -> None:
     plt.close(fig)
 
 
+def _finish(fig, ax, path: Path, title: str, xlabel: str, ylabel: str | None = None,
+            grid: bool = True, legend_size: str = "x-small") -> None:
+    """Label, grid and legend of a one-panel figure, then save it."""
+    ax.set_xlabel(xlabel)
+    if ylabel:
+        ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    if grid:
+        ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=legend_size)
+    _save(fig, path)
+
+
 def _style(name: str) -> dict:
     return {"marker": "o", "lw": 2.5 if name.startswith("atlas Taylor") else 1.2, "ms": 4}
 
@@ -40,12 +53,8 @@ def fig_work_precision(wp: dict, path: Path) -> None:
         failed = [r for r in rows if r["failed"] or not np.isfinite(r["hinge"])]
         for j, r in enumerate(failed):
             ax.plot(r["wall"], 1.0, "x", color=f"C{k}", ms=10, label=f"{name}: failed" if j == 0 else None)
-    ax.set_xlabel("wall time [s]")
-    ax.set_ylabel("max hinge error vs reference")
-    ax.set_title(f"work-precision, n = {wp['n']}, L = {wp['L']}, T = {wp['T']:g}")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="x-small")
-    _save(fig, path)
+    _finish(fig, ax, path, f"work-precision, n = {wp['n']}, L = {wp['L']}, T = {wp['T']:g}",
+            "wall time [s]", "max hinge error vs reference")
 
 
 def fig_long_run(lr: dict, path: Path) -> None:
@@ -59,12 +68,7 @@ def fig_long_run(lr: dict, path: Path) -> None:
     t = np.geomspace(1, lr["T"], 10)
     ax.loglog(t, 1e-16 * np.sqrt(t), "k:", lw=1, label="sqrt(t) (Brouwer)")
     ax.loglog(t, 1e-16 * t, "k--", lw=1, label="t (linear drift)")
-    ax.set_xlabel("t")
-    ax.set_ylabel("max relative energy error up to t")
-    ax.set_title(f"long runs, n = {lr['n']}, L = {lr['L']}")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="x-small")
-    _save(fig, path)
+    _finish(fig, ax, path, f"long runs, n = {lr['n']}, L = {lr['L']}", "t", "max relative energy error up to t")
 
 
 def fig_pole(pole: dict, path: Path) -> None:
@@ -109,11 +113,9 @@ def fig_circle(circ: dict, path: Path) -> None:
             ax.plot([], [], color=f"C{k}", label=f"{label}: {r['status']}")
     for m in range(-1, int(circ["T"] / np.pi) + 2):
         ax.axvline(np.pi / 2 + m * np.pi, color="0.85", lw=0.6, zorder=0)
-    ax.set_xlabel("time")
-    ax.set_ylabel("Taylor step size")
-    ax.set_title(f"n = 3 through t = ±pi/2 (grey: crossings of the chart angle at unit chart speed), L = {circ['L']}")
-    ax.legend(fontsize="x-small")
-    _save(fig, path)
+    _finish(fig, ax, path,
+            f"n = 3 through t = ±pi/2 (grey: crossings of the chart angle at unit chart speed), L = {circ['L']}",
+            "time", "Taylor step size", grid=False)
 
 
 def fig_size(size: dict, path: Path) -> None:
@@ -122,12 +124,8 @@ def fig_size(size: dict, path: Path) -> None:
     for key, label in [("compile", "cold compile [s]"), ("wall_per_time", "wall per unit time [s]"),
                        ("ms_per_step", "ms per Taylor step")]:
         ax.loglog(n, [r[key] for r in size["rows"]], "o-", label=f"{label}, ~ n^{size['exponents'][key]:.1f}")
-    ax.set_xlabel("n (rods)")
     ax.set_xticks(n, [str(k) for k in n])
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small")
-    ax.set_title("cost against size")
-    _save(fig, path)
+    _finish(fig, ax, path, "cost against size", "n (rods)", legend_size="small")
 
 
 def _wp_table(wp: dict) -> str:
