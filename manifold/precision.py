@@ -63,7 +63,7 @@ def heyoka_fp_kwargs(fp_type) -> dict:
 
 def event_fp_kwargs(fp_type) -> dict:
     """Keyword arguments selecting ``fp_type`` in ``heyoka.t_event`` (which takes no precision)."""
-    return {"fp_type": hy.real if isinstance(fp_type, MultiPrecision) else fp_type}
+    return {"fp_type": heyoka_fp_kwargs(fp_type)["fp_type"]}
 
 
 def unit_roundoff(fp_type) -> float:
