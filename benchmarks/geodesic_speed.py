@@ -28,35 +28,37 @@ import heyoka as hy
 import numpy as np
 
 from linkage import Chain
-from manifold import geodesic_system as gs
-from manifold.geodesic_solver import solve_chart_exp_ode
-from manifold.scipy_geodesics import solve_chart_exp_ode_scipy
+from manifold import ScipyStepper, TaylorStepper, compiled, solve_chart_exp_ode
 
 from .study.experiments import generic_start
 
 
-def _clear_caches() -> None:
-    gs.integrator.cache_clear()
-    gs._pieces.cache_clear()
+def _clear_caches(family) -> None:
+    compiled(family).clear()
     hy.llvm_state.clear_memcache()
+
+
+def _build_integrator(family) -> None:
+    with compiled(family).integrator():
+        pass
 
 
 def compile_times(n: int) -> tuple[float, float]:
     """(cold, from disk cache) seconds to build the float64 integrator."""
     family = Chain(n, n - 1.3).atlas().charts[0].family
     hy.llvm_state.set_diskcache_enabled(False)
-    _clear_caches()
+    _clear_caches(family)
     t0 = time.perf_counter()
-    gs.integrator(family)
+    _build_integrator(family)
     cold = time.perf_counter() - t0
     with tempfile.TemporaryDirectory() as cache:
         hy.llvm_state.set_diskcache_path(cache)
         hy.llvm_state.set_diskcache_enabled(True)
-        _clear_caches()
-        gs.integrator(family)  # populate
-        _clear_caches()
+        _clear_caches(family)
+        _build_integrator(family)  # populate
+        _clear_caches(family)
         t0 = time.perf_counter()
-        gs.integrator(family)
+        _build_integrator(family)
         cached = time.perf_counter() - t0
         hy.llvm_state.set_diskcache_enabled(False)
     return cold, cached
@@ -82,14 +84,14 @@ def work_precision(n: int, T: float) -> dict:
     metric = chain.metric()
     ref = _final_hinges(solve_chart_exp_ode(metric, p0, v0, T, fp_type=np.longdouble, tol=1e-19, dense=False))
 
-    def measure(solve, **kw):
-        solve(metric, p0, v0, min(T, 0.5), dense=False, **kw)  # warm-up (compile, caches)
+    def measure(stepper):
+        solve_chart_exp_ode(metric, p0, v0, min(T, 0.5), dense=False, stepper=stepper)  # warm-up (compile, caches)
         t0 = time.perf_counter()
-        sol = solve(metric, p0, v0, T, dense=False, **kw)
+        sol = solve_chart_exp_ode(metric, p0, v0, T, dense=False, stepper=stepper)
         return time.perf_counter() - t0, float(np.abs(_final_hinges(sol) - ref).max())
 
-    hey = [measure(solve_chart_exp_ode, tol=tol) for tol in (1e-6, 1e-9, 1e-12, None)]
-    dop = [measure(solve_chart_exp_ode_scipy, rtol=r, atol=r) for r in (1e-6, 1e-8, 1e-10, 1e-12, 1e-13)]
+    hey = [measure(TaylorStepper(tol)) for tol in (1e-6, 1e-9, 1e-12, None)]
+    dop = [measure(ScipyStepper("DOP853", rtol=r, atol=r)) for r in (1e-6, 1e-8, 1e-10, 1e-12, 1e-13)]
     return {"heyoka": hey, "dop853": dop, "ratios": _ratios(hey, dop)}
 
 

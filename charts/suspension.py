@@ -29,7 +29,7 @@ from .chain_geometry import (
     validate_chain,
     validate_permutation,
 )
-from .suspension_symbolic import SuspensionFamily, evaluate_jacobian
+from .suspension_symbolic import SuspensionFamily
 
 #: Largest closure residual (max rod-length error) accepted by ``get_parameters``.
 CLOSURE_TOLERANCE = 1e-9
@@ -81,7 +81,11 @@ class SuspensionChart(SymbolicChart):
         return f"SuspensionChart(n={self.n}, L={self.L!r}, order={self.order.tolist()})"
 
     # -- parameters -----------------------------------------------------------
-    def _check_parameters(self, a: ArrayLike) -> NDArray:
+    def check_parameters(self, a: ArrayLike) -> NDArray:
+        """``a`` as floats of shape ``(..., n-2)``, finite, latitudes in ``[-pi/2, pi/2]`` (``ChartDomainError``)."""
+        a = np.asarray(a)
+        if np.iscomplexobj(a):
+            raise ChartDomainError(f"chart parameters must be real, got complex values {a}")
         a = np.asarray(a, dtype=float)
         if a.ndim == 0 or a.shape[-1] != self.dim:
             raise ChartDomainError(
@@ -101,13 +105,14 @@ class SuspensionChart(SymbolicChart):
     # -- the map and its inverse -------------------------------------------------
     def hinges(self, a: ArrayLike) -> NDArray:
         """Complex interior hinges ``(..., n-1)`` in the chain's own rod order."""
-        a = self._check_parameters(a)
-        z = formula.hinges(self._columns(a), self.L, NUMPY, self.sheet)
-        zc = np.stack([np.broadcast_to(h.re + 1j * h.im, a.shape[:-1]) for h in z], axis=-1)
-        return relabel_hinges(zc, self.order, self.L)
+        return to_complex(self.get_point(a))
 
     def get_point(self, a: ArrayLike) -> NDArray:
-        return to_real(self.hinges(a))
+        if self.n > 2:
+            return super().get_point(a)
+        a = self.check_parameters(a)  # S^0: the elbow of the given sheet
+        z = formula.hinges([], self.L, NUMPY, self.sheet)[0]
+        return np.broadcast_to(to_real(np.array([z.re + 1j * z.im])), (*a.shape[:-1], 2)).copy()
 
     def get_parameters(self, p: ArrayLike) -> NDArray:
         p = np.asarray(p, dtype=float)
@@ -138,19 +143,16 @@ class SuspensionChart(SymbolicChart):
         out[..., -1] = (out[..., -1] + np.pi) % (2 * np.pi) - np.pi
         return out
 
-    # -- derivatives and quality ---------------------------------------------------
+    # -- derivatives and quality (from the compiled family; S^0 has no parameters) ----
     def raw_jacobian(self, a: ArrayLike) -> NDArray:
-        a = self._check_parameters(a)
-        if self.dim == 0:
-            return np.zeros((*a.shape[:-1], self.ambient_dim, 0))
-        _, Jz = evaluate_jacobian(self.n, self.L, a)
-        return self.linear_map @ Jz
+        if self.n > 2:
+            return super().raw_jacobian(a)
+        return np.zeros((*self.check_parameters(a).shape[:-1], self.ambient_dim, 0))
 
     def quality(self, a: ArrayLike) -> NDArray:
-        a = self._check_parameters(a)
-        if self.dim <= 1:
-            return np.ones(a.shape[:-1])
-        return np.min(np.cos(a[..., :-1]), axis=-1)
+        if self.n > 2:
+            return super().quality(a)
+        return np.ones(self.check_parameters(a).shape[:-1])
 
     def sphere_point(self, a: ArrayLike) -> NDArray:
         """The point of the unit sphere ``S^(n-2)`` in ``R^(n-1)`` with these suspension coordinates.
@@ -160,7 +162,7 @@ class SuspensionChart(SymbolicChart):
         homeomorphism of the configuration space onto the round sphere (used for
         pictures; continuous through the poles, where ``cos phi_m = 0``).
         """
-        a = self._check_parameters(a)
+        a = self.check_parameters(a)
         out = np.stack([np.cos(a[..., -1]), np.sin(a[..., -1])], axis=-1)
         for k in range(self.dim - 2, -1, -1):
             phi = a[..., k : k + 1]
@@ -169,7 +171,7 @@ class SuspensionChart(SymbolicChart):
 
     def rod_angles(self, a: ArrayLike) -> NDArray:
         """Rod angles ``theta_1 .. theta_n`` from the seed's angle form (own rod order)."""
-        a = self._check_parameters(a)
+        a = self.check_parameters(a)
         f = formula.rod_angles(self._columns(a), self.L, NUMPY, self.sheet)
         f = np.stack(np.broadcast_arrays(*f), axis=-1)
         out = np.empty_like(f)

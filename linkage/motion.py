@@ -10,7 +10,7 @@ from typing import Any
 
 from numpy.typing import ArrayLike, NDArray
 
-from manifold.geodesic_solver import GeodesicSolution, solve_chart_exp_ode
+from manifold import GeodesicSolution, solve_chart_exp_ode
 
 from .chain import Chain
 
@@ -29,6 +29,9 @@ class ChainMotion:
 
     def __init__(self, chain: Chain, solution: GeodesicSolution) -> None:
         self.chain, self.solution = chain, solution
+
+    def __repr__(self) -> str:
+        return f"ChainMotion({self.chain!r}, {self.solution!r})"
 
     def __call__(self, t: ArrayLike) -> tuple[NDArray, NDArray]:
         """Complex hinges and hinge velocities at time(s) ``t`` (rounded to complex128)."""

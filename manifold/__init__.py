@@ -6,6 +6,16 @@ Knows nothing of linkages: it may import numpy, scipy and heyoka, never
 
 from .atlas import Atlas
 from .chart import Chart, ChartDomainError
+from .compiled import ChartNumerics, CompiledFamily, compiled
+from .family import ChartFamily
+from .geodesic_solver import solve_chart_exp_ode
 from .metric import InducedMetric
+from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
+from .steppers import ScipyStepper, Stepper, TaylorStepper
+from .symbolic import SymbolicChart
 
-__all__ = ["Atlas", "Chart", "ChartDomainError", "InducedMetric"]
+__all__ = [
+    "Atlas", "Chart", "ChartDomainError", "ChartFamily", "ChartNumerics", "ChartSwitch", "CompiledFamily",
+    "GeodesicIntegrationError", "GeodesicSolution", "InducedMetric", "ScipyStepper", "Segment", "SolveStatus",
+    "SolverStats", "Stepper", "SymbolicChart", "TaylorStepper", "compiled", "solve_chart_exp_ode",
+]

@@ -45,6 +45,11 @@ class Atlas:
         dims = {(c.dim, c.ambient_dim) for c in charts}
         if len(dims) != 1:
             raise ValueError(f"charts disagree on (dim, ambient_dim): {sorted(dims)}")
+        families = {ch.family.key for ch in charts if hasattr(ch, "family")}
+        if len(families) > 1 or (families and not all(hasattr(ch, "family") for ch in charts)):
+            raise ValueError(
+                f"an atlas takes charts of one chart family (its geodesics compile one system), got {sorted(map(repr, families))}"
+            )
         ids = list(range(len(charts))) if ids is None else list(ids)
         if len(ids) != len(charts):
             raise ValueError(f"got {len(ids)} ids for {len(charts)} charts")

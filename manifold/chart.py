@@ -8,6 +8,7 @@ embedding space ``R^N`` (shape ``(..., N)``).  Vocabulary follows Manifolds.jl:
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -79,27 +80,20 @@ class Chart(ABC):
         return np.linalg.norm(r, axis=-1) / scale
 
     def refine_parameters(self, a: ArrayLike, p: ArrayLike, steps: int = 2) -> NDArray:
-        """Polish approximate parameters ``a`` of point ``p`` by Gauss-Newton steps.
+        """Polish approximate parameters ``a`` of point ``p`` by Gauss-Newton steps ``a <- a + J^+ (p - get_point(a))``.
 
-        ``a <- a + J^+ (p - get_point(a))``, a step being kept only where it does
-        not increase the residual.  A closed-form inverse that goes through
-        ill-conditioned intermediates (as near a chart's singular set) is so
-        brought to the accuracy the forward map allows.
+        A closed-form inverse that goes through ill-conditioned intermediates
+        (as near a chart's singular set) is so brought to the accuracy the
+        forward map allows (see :func:`gauss_newton`).
         """
-        a = np.array(a, dtype=float)
-        p = np.asarray(p, dtype=float)
-        res = np.linalg.norm(p - self.get_point(a), axis=-1)
-        for _ in range(steps):
-            J = self.raw_jacobian(a)
+        def solve(x: NDArray, r: NDArray) -> NDArray:
+            J = self.raw_jacobian(x)
             regular = np.all(np.isfinite(J), axis=(-2, -1))
             J = np.where(regular[..., None, None], J, 0.0)  # singular points: zero step
-            step = _apply(np.linalg.pinv(J), p - self.get_point(a))
-            trial = self.clamp_parameters(a + step)
-            res_trial = np.linalg.norm(p - self.get_point(trial), axis=-1)
-            better = res_trial <= res
-            a = np.where(better[..., None], trial, a)
-            res = np.where(better, res_trial, res)
-        return a
+            return _apply(np.linalg.pinv(J), r)
+
+        return gauss_newton(np.array(a, dtype=float), np.asarray(p, dtype=float), self.get_point, solve,
+                            max_steps=steps, clamp=self.clamp_parameters)
 
     def clamp_parameters(self, a: NDArray) -> NDArray:
         """Bring parameters just outside the domain (by rounding) back into it; identity by default."""
@@ -109,3 +103,38 @@ class Chart(ABC):
 def _apply(M: NDArray, v: ArrayLike) -> NDArray:
     """Batched matrix-vector product ``M v``."""
     return np.einsum("...ij,...j->...i", M, np.asarray(v, dtype=M.dtype))
+
+
+def gauss_newton(a: NDArray, target: NDArray, point: Callable, solve: Callable, *, max_steps: int,
+                 step_tol: float = 0.0, clamp: Callable[[NDArray], NDArray] | None = None) -> NDArray:
+    """Polish ``a`` so that ``point(a) = target``: steps ``a <- a + solve(a, target - point(a))``.
+
+    Batched over leading axes.  A step is kept only where it does not increase
+    the residual ``max |target - point(a)|``; the loop stops after
+    ``max_steps`` or once every step is at most ``step_tol * max(1, |a|)``.
+    Works in any floating type that ``point`` and ``solve`` return.
+
+    Parameters
+    ----------
+    a, target
+        Start parameters ``(..., k)`` and the point sought ``(..., N)``.
+    point, solve
+        ``a -> point(a)`` and ``(a, r) -> da`` (e.g. ``J^+ r``).
+    clamp
+        Maps a trial back into the parameter domain (default: identity).
+    """
+    def residual(x: NDArray) -> NDArray:
+        return np.max(np.abs(target - point(x)), axis=-1)
+
+    res = residual(a)
+    for _ in range(max_steps):
+        step = solve(a, target - point(a))
+        trial = a + step if clamp is None else clamp(a + step)
+        res_trial = residual(trial)
+        better = np.asarray(res_trial <= res)  # a 0-d comparison of real128 scalars is a Python bool
+        a = np.where(better[..., None], trial, a)
+        res = np.where(better, res_trial, res)
+        size = np.asarray(np.max(np.abs(a), axis=-1)).astype(float)  # convergence judged in float64
+        if np.all(np.asarray(np.max(np.abs(step), axis=-1)).astype(float) <= step_tol * np.maximum(1.0, size)):
+            break
+    return a

@@ -1,81 +1,35 @@
-"""Charts known as heyoka expressions, so that geodesic systems can be compiled.
+"""Charts that are members of a compiled :class:`~manifold.family.ChartFamily`.
 
-A :class:`ChartFamily` is a parametrised map ``a -> z(a; theta)`` written as heyoka
-expressions, with the family parameters ``theta`` as runtime parameters
-``par[0 .. n_params-1]``.  A :class:`SymbolicChart` is one member: fixed
-``theta`` and a constant affine map ``p = M z + m`` into the embedding space.
-All charts of one family share one compiled integrator; ``theta`` and the
-pulled-back ambient metric ``M^T K M`` are runtime parameters.
+A :class:`SymbolicChart` is one member of a family: fixed family parameters
+``theta`` and a constant invertible affine map ``p = M z(a; theta) + m`` into
+the embedding space.  Its Jacobian and quality come from the family's
+compiled functions (:mod:`manifold.compiled`), so the formula that the
+integrator compiles is the one the chart evaluates.  All charts of one family
+share one compiled integrator; ``theta`` and the pulled-back ambient metric
+``M^T K M`` are runtime parameters.
 """
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
-from collections.abc import Hashable, Sequence
+from abc import abstractmethod
+from typing import Any
 
-import heyoka as hy
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .chart import Chart
-
-
-class ChartFamily(ABC):
-    """A family of chart maps ``z(a; theta)`` as heyoka expressions.
-
-    Attributes
-    ----------
-    dim
-        Number of chart parameters ``a``.
-    point_dim
-        Number of coordinates of ``z``.
-    block
-        ``z`` is made of ``point_dim / block`` points of ``R^block`` (2 for planar
-        hinges); the ambient metric must be ``B (x) I_block``.
-    n_params
-        Number of family parameters ``theta``.
-    periodic
-        Indices of ``2 pi``-periodic parameters.  The integrator wraps them into
-        ``[-pi, pi]``: heyoka's error control is relative to the state's size,
-        so an angle left to grow to ``O(1000)`` would cost three digits.
-    key
-        Hashable identity used to cache compiled systems.
-    """
-
-    dim: int
-    point_dim: int
-    block: int
-    n_params: int
-    periodic: tuple[int, ...] = ()
-
-    @property
-    @abstractmethod
-    def key(self) -> Hashable:
-        """Cache key: two families with equal keys compile to the same code."""
-
-    @abstractmethod
-    def point_expressions(self, a: Sequence[hy.expression], fp_type: type) -> list[hy.expression]:
-        """``z(a; theta)`` with ``theta = par[0 .. n_params-1]``, constants exact in ``fp_type``."""
-
-    def point_jets(self, a: Sequence[hy.expression], c: Sequence[hy.expression], fp_type: type) -> list | None:
-        """``z`` as :class:`~manifold.jets.Jet` s along velocity ``c``, or ``None`` (the default).
-
-        A family that can run its formula on jets gets the geodesic equations
-        from one forward sweep instead of symbolic differentiation of the
-        expanded ``z``: much smaller for deep formulas.
-        """
-        return None
-
-    @abstractmethod
-    def quality_expressions(self, a: Sequence[hy.expression]) -> list[hy.expression]:
-        """Expressions whose minimum is the chart quality (empty: the chart is global)."""
+from .compiled import ChartNumerics, compiled
+from .family import ChartFamily
 
 
 class SymbolicChart(Chart):
-    """A chart ``p = M z(a; theta) + m`` of a :class:`ChartFamily`.
+    """A chart ``p = M z(a; theta) + m`` of a :class:`~manifold.family.ChartFamily`.
 
     Subclasses set ``family``, ``family_parameters`` (``theta``), ``linear_map``
-    (``M``, square and invertible) and implement :meth:`offset`.
+    (``M``, square and invertible), implement :meth:`offset`,
+    :meth:`get_parameters` (the inverse) and may override
+    :meth:`check_parameters` (domain validation).  :meth:`get_point`,
+    :meth:`raw_jacobian` and :meth:`quality` are derived from the family.
     """
 
     family: ChartFamily
@@ -83,8 +37,35 @@ class SymbolicChart(Chart):
     linear_map: NDArray
 
     @abstractmethod
-    def offset(self, fp_type: type = float) -> NDArray:
+    def offset(self, fp_type: Any = float) -> NDArray:
         """The constant ``m`` of ``p = M z + m``, in ``fp_type``."""
+
+    def check_parameters(self, a: ArrayLike) -> NDArray:
+        """``a`` as a float array of shape ``(..., dim)``; subclasses add their domain checks."""
+        a = np.asarray(a)
+        if np.iscomplexobj(a):
+            raise TypeError(f"chart parameters must be real, got complex values {a}")
+        a = np.asarray(a, dtype=float)
+        if a.ndim == 0 or a.shape[-1] != self.dim:
+            raise ValueError(f"chart parameters must have shape (..., {self.dim}), got shape {a.shape}")
+        return a
+
+    def get_point(self, a: ArrayLike) -> NDArray:
+        """``p = M z(a) + m``, shape ``(..., ambient_dim)``."""
+        a = self.check_parameters(a)
+        z, _ = compiled(self.family).evaluate_jacobian(self.family_parameters, a)
+        return z @ self.linear_map.T + self.offset()
+
+    def raw_jacobian(self, a: ArrayLike) -> NDArray:
+        """``M dz/da``, shape ``(..., ambient_dim, dim)``; non-finite on the singular set."""
+        a = self.check_parameters(a)
+        _, Jz = compiled(self.family).evaluate_jacobian(self.family_parameters, a)
+        return self.linear_map @ Jz
+
+    def quality(self, a: ArrayLike) -> NDArray:
+        """``min_m quality_m(a)`` from the family's quality expressions (1 for a global chart)."""
+        a = self.check_parameters(a)
+        return compiled(self.family).evaluate_quality(self.family_parameters, a)
 
     def inverse_linear_map(self) -> NDArray:
         """``M^{-1}``, rounded to integers when it is an integer matrix (as for rod relabelings)."""
@@ -102,3 +83,7 @@ class SymbolicChart(Chart):
         if not np.allclose(np.kron(B, np.eye(b)), W, rtol=0, atol=1e-13 * np.abs(W).max()):
             raise ValueError(f"ambient metric is not of the form B (x) I_{b} in this chart")
         return B
+
+    def numerics(self, K: NDArray, q_out: float, fp_type: Any = float) -> ChartNumerics:
+        """This chart in the working precision ``fp_type`` for the ambient metric ``K`` (see :class:`ChartNumerics`)."""
+        return ChartNumerics(self, K, q_out, fp_type)

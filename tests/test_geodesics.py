@@ -10,7 +10,7 @@ from charts import SuspensionChart
 from linkage import Chain
 from linkage.ambient import integrate_ambient
 from linkage.motion import free_motion
-from manifold.geodesic_solver import solve_chart_exp_ode
+from manifold import ScipyStepper, solve_chart_exp_ode
 
 HALF_PI = np.pi / 2
 
@@ -237,12 +237,10 @@ def test_forced_start_chart_below_threshold_switches_at_once():
 
 @pytest.mark.parametrize("method, rtol, tol", [("DOP853", 1e-12, 1e-9), ("RK45", 1e-10, 1e-6), ("Radau", 1e-8, 1e-5)])
 def test_scipy_driver_follows_the_same_geodesic(method, rtol, tol):
-    from manifold.scipy_geodesics import solve_chart_exp_ode_scipy
-
     chain = Chain(4, 2.9)
     p0, v0 = start(chain, [1.2, 0.3], [1.0, 0.2])
     ours = solve_chart_exp_ode(chain.metric(), p0, v0, 8.0)
-    theirs = solve_chart_exp_ode_scipy(chain.metric(), p0, v0, 8.0, method=method, rtol=rtol, atol=rtol)
+    theirs = solve_chart_exp_ode(chain.metric(), p0, v0, 8.0, stepper=ScipyStepper(method, rtol=rtol, atol=rtol))
     assert theirs.n_switches == ours.n_switches >= 1
     ts = np.linspace(0, 8, 17)
     assert np.abs(theirs(ts)[0] - ours(ts)[0]).max() <= tol
@@ -250,10 +248,8 @@ def test_scipy_driver_follows_the_same_geodesic(method, rtol, tol):
 
 def test_scipy_single_chart_wraps_instead_of_switching():
     """With switching off the first scipy event is a wrap of t, not a quality crossing."""
-    from manifold.scipy_geodesics import solve_chart_exp_ode_scipy
-
     chain = Chain(4, 2.9)
-    sol = solve_chart_exp_ode_scipy(chain.metric(), [0.2, 3.0], [0.1, 1.0], 2.0, chart=0, switching=False)
+    sol = solve_chart_exp_ode(chain.metric(), [0.2, 3.0], [0.1, 1.0], 2.0, chart=0, switching=False, stepper=ScipyStepper())
     assert sol.n_switches == 0 and len(sol.segments) >= 2  # t passed pi and was wrapped
     assert all(s.chart == 0 for s in sol.segments)
     assert -np.pi <= sol.final_state[1][-1] <= np.pi

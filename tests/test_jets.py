@@ -6,8 +6,8 @@ import pytest
 
 from charts.suspension_symbolic import SuspensionFamily
 from linkage import Chain
-from manifold import geodesic_system as gs
-from manifold.geodesic_solver import _ChartNumerics
+from manifold import compiled
+from manifold.geodesic_system import SymbolicPieces
 
 
 class DifferentiatedFamily(SuspensionFamily):
@@ -17,12 +17,6 @@ class DifferentiatedFamily(SuspensionFamily):
     def key(self):
         return ("suspension-diff", self.n)
 
-    def __eq__(self, other):
-        return isinstance(other, DifferentiatedFamily) and other.n == self.n
-
-    def __hash__(self):
-        return hash(self.key)
-
     def point_jets(self, a, c, fp_type):
         return None
 
@@ -31,11 +25,11 @@ class DifferentiatedFamily(SuspensionFamily):
 def test_jet_and_symbolic_geodesic_accelerations_agree(n):
     chain = Chain(n, n - 1.3, rod_densities=0.3)
     chart = chain.atlas().charts[1]
-    pars = _ChartNumerics(chart, chain.ambient_metric, -2.0, float).pars
+    pars = chart.numerics(chain.ambient_metric, -2.0).pars
     rng = np.random.default_rng(n)
     for fam in (SuspensionFamily(n), DifferentiatedFamily(n)):
-        cf = gs.acceleration_cfunc(fam, float)
-        tr = gs.transfer_cfunc(fam, float)
+        cf = compiled(fam).acceleration(float)
+        tr = compiled(fam).transfer(float)
         if fam.key[0] == "suspension":
             jet_cf, jet_tr = cf, tr
         else:
@@ -57,6 +51,6 @@ def test_jets_shrink_the_taylor_decomposition():
     """The reason for jets: the forward sweep is several times smaller for deep formulas."""
     sizes = {}
     for fam in (SuspensionFamily(6), DifferentiatedFamily(6)):
-        ta = hy.taylor_adaptive(gs.geodesic_equations(fam), np.zeros(8), compact_mode=True)
+        ta = hy.taylor_adaptive(SymbolicPieces(fam, float).equations(), np.zeros(8), compact_mode=True)
         sizes[fam.key[0]] = len(ta.decomposition)
     assert sizes["suspension"] * 2 < sizes["suspension-diff"], sizes

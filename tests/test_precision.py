@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from linkage import Chain
-from manifold.geodesic_solver import solve_chart_exp_ode
+from manifold import solve_chart_exp_ode
 from manifold.precision import MultiPrecision, as_fp, unit_roundoff
 
 

@@ -6,8 +6,7 @@ import pytest
 from charts import SuspensionChart
 from charts.seed_geodesics import SEED_EPS, integrate_seed_rk4, seed_vector_field
 from linkage import Chain
-from manifold.geodesic_solver import _ChartNumerics, solve_chart_exp_ode
-from manifold.geodesic_system import acceleration_cfunc
+from manifold import compiled, solve_chart_exp_ode
 
 HALF_PI = np.pi / 2
 
@@ -15,8 +14,8 @@ HALF_PI = np.pi / 2
 def library_acceleration(L: float, a, c) -> np.ndarray:
     """``c'`` of the library's embedded geodesic equations in ``SuspensionChart(4, L)`` (unit masses)."""
     chart = SuspensionChart(4, L)
-    cf = acceleration_cfunc(chart.family)
-    pars = _ChartNumerics(chart, np.eye(6), -2.0, float).pars[: cf.nparams]
+    cf = compiled(chart.family).acceleration(float)
+    pars = chart.numerics(np.eye(6), -2.0).pars[: cf.nparams]
     return cf(np.concatenate([a, c]).astype(float), pars=pars)
 
 

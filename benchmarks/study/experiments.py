@@ -19,10 +19,9 @@ import numpy as np
 
 from charts import backends, suspension_formula
 from linkage import Chain
-from manifold import geodesic_system as gs
-from manifold.geodesic_solver import solve_chart_exp_ode
+from manifold import ChartFamily, compiled, solve_chart_exp_ode
+from manifold.geodesic_system import SymbolicPieces
 from manifold.precision import MultiPrecision
-from manifold.symbolic import ChartFamily
 
 from . import methods as M
 
@@ -229,7 +228,7 @@ def through_circle_pole(L: float = 1.6, T: float = 20.0, max_steps: int = 20000)
              ("plain sin(x)/x", _PlainSincOps(float), HALF_PI),
              ("plain sin(x)/x, off the pole", _PlainSincOps(float), 0.3)]
     for label, ops, t_start in cases:
-        ta = hy.taylor_adaptive(gs.geodesic_equations(_CircleFamily(ops)), [t_start, 1.0], compact_mode=True)
+        ta = hy.taylor_adaptive(SymbolicPieces(_CircleFamily(ops), float).equations(), [t_start, 1.0], compact_mode=True)
         ta.pars[:] = pars[: len(ta.pars)]
         times, steps, status = [], [], "reached T"
         t0 = time.perf_counter()
@@ -280,18 +279,18 @@ def size_cost(ns: list[int], T: float = 5.0) -> dict:
         chain, p0, v0 = generic_start(n)
         family = chain.atlas().charts[0].family
         hy.llvm_state.set_diskcache_enabled(False)
-        gs.integrator.cache_clear()
-        gs._pieces.cache_clear()
+        compiled(family).clear()
         hy.llvm_state.clear_memcache()
         t0 = time.perf_counter()
-        ta = gs.integrator(family)
-        compile_s = time.perf_counter() - t0
+        with compiled(family).integrator() as ta:
+            compile_s = time.perf_counter() - t0
+            decomposition = len(ta.decomposition)
         solve_chart_exp_ode(chain.metric(), p0, v0, 0.01)
         t0 = time.perf_counter()
         sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, dense=False)
         wall = time.perf_counter() - t0
         rows.append({"n": n, "compile": compile_s, "wall_per_time": wall / T, "steps_per_time": sol.n_steps / T,
-                     "ms_per_step": 1e3 * wall / max(sol.n_steps, 1), "decomposition": len(ta.decomposition)})
+                     "ms_per_step": 1e3 * wall / max(sol.n_steps, 1), "decomposition": decomposition})
     fit = [r for r in rows if r["n"] >= 4]
     logn = np.log([r["n"] for r in fit])
     expo = {k: float(np.polyfit(logn, np.log([r[k] for r in fit]), 1)[0]) for k in ("compile", "wall_per_time", "ms_per_step")}

@@ -19,9 +19,7 @@ from linkage import Chain
 from charts.seed_geodesics import integrate_seed_rk4
 from linkage.ambient import integrate_ambient
 from linkage.rattle import integrate_rattle
-from manifold import geodesic_system as gs
-from manifold.geodesic_solver import GeodesicIntegrationError, solve_chart_exp_ode
-from manifold.scipy_geodesics import _quality_cfunc, solve_chart_exp_ode_scipy
+from manifold import GeodesicIntegrationError, ScipyStepper, compiled, solve_chart_exp_ode
 
 
 @dataclass
@@ -53,13 +51,14 @@ def _from_solution(name, knob, chain, sol, wall, ts, failed=None) -> Run:
 
 def _warm_up(chain: Chain, tol=None, scipy: bool = False) -> None:
     """Compile (or fetch from the caches) what a method needs, outside its timing."""
-    family = chain.atlas().charts[0].family
-    gs.transfer_cfunc(family, float)
+    family = compiled(chain.atlas().charts[0].family)
+    family.transfer(float)
     if scipy:
-        gs.acceleration_cfunc(family, float)
-        _quality_cfunc(family)
+        family.acceleration(float)
+        family.quality(float)
     else:
-        gs.integrator(family, float, tol)
+        with family.integrator(float, tol):
+            pass
 
 
 def atlas_taylor(chain: Chain, p0, v0, T, ts, tol) -> Run:
@@ -83,7 +82,7 @@ def single_chart_taylor(chain: Chain, p0, v0, T, ts, tol, chart: int = 0) -> Run
     except GeodesicIntegrationError as err:  # keep what was computed before the breakdown
         sol, failed = err.solution, str(err)
     wall = time.perf_counter() - t0
-    reached = ts[ts <= sol.t_span[1]]
+    reached = ts[ts <= float(sol.t_reached)]
     return _finite_prefix(_from_solution(name, tol, chain, sol, wall, reached, failed))
 
 
@@ -93,7 +92,7 @@ def scipy_atlas(chain: Chain, p0, v0, T, ts, rtol, method: str = "DOP853") -> Ru
     _warm_up(chain, scipy=True)
     t0 = time.perf_counter()
     try:
-        sol = solve_chart_exp_ode_scipy(chain.metric(), p0, v0, T, method=method, rtol=rtol, atol=rtol)
+        sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, stepper=ScipyStepper(method, rtol=rtol, atol=rtol))
     except RuntimeError as err:
         return Run(name, rtol, time.perf_counter() - t0, ts[:0], np.zeros((0, chain.n - 1)), np.zeros(0), str(err))
     return _from_solution(name, rtol, chain, sol, time.perf_counter() - t0, ts)
@@ -120,7 +119,7 @@ def _finite_prefix(run: Run) -> Run:
 
 def chart_pars(chart, K: np.ndarray, q_out: float = -2.0) -> np.ndarray:
     """Runtime parameters of a chart's compiled geodesic system (float64)."""
-    return gs.layout(chart.family).pack(chart.family_parameters, chart.core_metric(K), q_out, float)
+    return chart.numerics(K, q_out).pars
 
 
 def _sampled(name, knob, t, hinges, energy, ts, wall, failed, steps) -> Run:

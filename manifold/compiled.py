@@ -1,0 +1,255 @@
+"""Everything compiled for one chart family, built once per ``family.key`` and shared safely.
+
+:func:`compiled` returns the :class:`CompiledFamily` of a family.  It owns the
+parameter :class:`~manifold.geodesic_system.Layout`, the symbolic pieces per
+precision, and lazily compiled artefacts: the geodesic Taylor integrator, the
+transfer, acceleration, quality and Jacobian functions.  Charts derive their
+numpy Jacobian and quality from it, and solvers their integrators, so each
+formula exists once.
+
+Thread safety: artefacts are built under a lock; compiled functions are
+stateless; integrators are stateful, so :meth:`CompiledFamily.integrator`
+lends each caller its own copy from a pool (two solves never share one).
+
+heyoka also caches machine code on disk (``heyoka.llvm_state`` disk cache,
+default ``~/.cache/heyoka``): a second process skips LLVM's optimisation.
+"""
+
+from __future__ import annotations
+
+import copy
+import threading
+import time
+from collections.abc import Callable, Hashable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import heyoka as hy
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .chart import gauss_newton
+from .family import ChartFamily
+from .geodesic_system import Layout, SymbolicPieces
+from .precision import as_fp, heyoka_fp_kwargs, is_double, unit_roundoff
+
+
+class CompiledFamily:
+    """Compiled artefacts of one chart family (use :func:`compiled` to get the shared instance).
+
+    Attributes
+    ----------
+    family
+        The :class:`~manifold.family.ChartFamily`.
+    layout
+        Where ``theta``, ``B`` and ``q_out`` live in the runtime parameters.
+    n_quality
+        Number of quality expressions (= switch events); 0 for a global chart.
+    compile_seconds
+        Wall time spent building artefacts so far (symbolic work and LLVM).
+    """
+
+    def __init__(self, family: ChartFamily) -> None:
+        self.family = family
+        self.layout = Layout.of(family)
+        self.compile_seconds = 0.0
+        self._artefacts: dict[Hashable, Any] = {}
+        self._pools: dict[Hashable, list] = {}
+        self._lock = threading.RLock()
+        self.n_quality = len(self.pieces(float).quality)
+
+    def __repr__(self) -> str:
+        return f"CompiledFamily({self.family!r}, {len(self._artefacts)} artefacts)"
+
+    def _get(self, key: Hashable, build: Callable[[], Any]) -> Any:
+        """The artefact ``key``, built once (under the lock) on first use."""
+        try:
+            return self._artefacts[key]
+        except KeyError:
+            pass
+        with self._lock:
+            if key not in self._artefacts:
+                t0 = time.perf_counter()
+                self._artefacts[key] = build()
+                self.compile_seconds += time.perf_counter() - t0
+            return self._artefacts[key]
+
+    def clear(self) -> None:
+        """Forget every artefact (for measuring cold compiles; heyoka's disk cache is separate)."""
+        with self._lock:
+            self._artefacts.clear()
+            self._pools.clear()
+
+    def pieces(self, fp_type: Any) -> SymbolicPieces:
+        """The symbolic pieces with constants exact in ``fp_type``."""
+        return self._get(("pieces", fp_type), lambda: SymbolicPieces(self.family, fp_type))
+
+    def _cfunc(self, key: Hashable, fp_type: Any, outputs: Callable[[SymbolicPieces], list], inputs: str) -> Any:
+        def build() -> Any:
+            P = self.pieces(fp_type)
+            args = {"a": P.a, "ac": P.a + P.c}[inputs]
+            outs = [o if isinstance(o, hy.expression) else hy.expression(float(o)) for o in outputs(P)]
+            return hy.cfunc(outs, args, compact_mode=True, **heyoka_fp_kwargs(fp_type))
+        return self._get(key, build)
+
+    def transfer(self, fp_type: Any = float) -> Any:
+        """Compiled ``(a, c, u) -> (z(a), J c, g^{-1} J^T W u, 1/2 c^T g c)``: ``N + N + k + 1`` outputs.
+
+        With ``u`` an embedded vector, ``g^{-1} J^T W u`` are its tangent
+        coefficients (exact for tangent ``u``): the velocity transfer at a
+        chart switch and the Gauss-Newton step of the inverse map.
+        """
+        def build() -> Any:
+            P = self.pieces(fp_type)
+            u = [hy.expression(f"u{r}") for r in range(P.N)]
+            outs = list(P.z) + list(P.Jc) + P.tangent_coefficients(u) + [P.energy()]
+            return hy.cfunc(outs, P.a + P.c + u, compact_mode=True, **heyoka_fp_kwargs(fp_type))
+        return self._get(("transfer", fp_type), build)
+
+    def acceleration(self, fp_type: Any = float, form: str = "embedded") -> Any:
+        """Compiled right-hand side ``(a, c) -> c'`` (for other steppers and checks)."""
+        return self._cfunc(("acceleration", fp_type, form), fp_type, lambda P: P.acceleration(form), "ac")
+
+    def quality(self, fp_type: Any = float) -> Any:
+        """Compiled ``a -> (quality_1(a), ...)`` (``None`` for a global chart: no quality expressions)."""
+        if self.n_quality == 0:
+            return None
+        return self._cfunc(("quality", fp_type), fp_type, lambda P: P.quality, "a")
+
+    def jacobian(self, fp_type: Any = float) -> Any:
+        """Compiled ``a -> (z(a), dz/da)``: ``N`` values then the Jacobian row-major (``N x k``)."""
+        return self._cfunc(("jacobian", fp_type), fp_type, lambda P: list(P.z) + [x for row in P.J for x in row], "a")
+
+    @contextmanager
+    def integrator(self, fp_type: Any = float, tol: float | None = None, form: str = "embedded",
+                   backward: bool = False) -> Iterator[Any]:
+        """Lend a Taylor integrator (compact mode) of the geodesics with switch events; return it after use.
+
+        The caller owns it inside the ``with`` block: set ``state``, ``time``
+        and ``pars`` (``Layout.pack(...)[:len(ta.pars)]``) before each use.
+        ``tol=None`` is heyoka's default, the machine epsilon of ``fp_type``.
+        ``backward=True`` mirrors the event directions for negative times.
+        """
+        key = ("integrator", fp_type, tol, form, backward)
+
+        def build() -> Any:
+            P = self.pieces(fp_type)
+            kw = {} if tol is None else {"tol": fp_type(tol)}
+            return hy.taylor_adaptive(P.equations(form), as_fp(np.zeros(2 * P.k), fp_type), compact_mode=True,
+                                      t_events=P.events(backward), **kw, **heyoka_fp_kwargs(fp_type))
+
+        template = self._get(key, build)
+        with self._lock:
+            pool = self._pools.setdefault(key, [])
+            ta = pool.pop() if pool else None
+        if ta is None:
+            ta = copy.copy(template)
+        try:
+            yield ta
+        finally:
+            with self._lock:
+                self._pools.setdefault(key, []).append(ta)
+
+    def evaluate_jacobian(self, theta: ArrayLike, a: ArrayLike) -> tuple[NDArray, NDArray]:
+        """``z`` (``(..., N)``) and ``dz/da`` (``(..., N, k)``) at parameters ``a`` (float64, batched)."""
+        a = np.asarray(a, dtype=float)
+        k, N = self.family.dim, self.family.point_dim
+        out = _batched(self.jacobian(float), a, theta)
+        return out[..., :N], out[..., N:].reshape(*a.shape[:-1], N, k)
+
+    def evaluate_quality(self, theta: ArrayLike, a: ArrayLike) -> NDArray:
+        """``min_m quality_m(a)`` (float64, batched); 1 for a global chart."""
+        a = np.asarray(a, dtype=float)
+        cf = self.quality(float)
+        if cf is None:
+            return np.ones(a.shape[:-1])
+        return np.min(_batched(cf, a, theta), axis=-1)
+
+
+def _batched(cf: Any, a: NDArray, theta: ArrayLike) -> NDArray:
+    """Evaluate a float64 cfunc of ``a`` over the leading axes of ``a`` (shape ``(..., k)``)."""
+    flat = np.ascontiguousarray(a.reshape(-1, a.shape[-1]).T)
+    pars = np.repeat(np.asarray(theta, dtype=float)[: cf.nparams, None], flat.shape[1], axis=1)
+    return cf(flat, pars=pars).T.reshape(*a.shape[:-1], -1)
+
+
+_REGISTRY: dict[Hashable, CompiledFamily] = {}
+_REGISTRY_LOCK = threading.Lock()
+
+
+def compiled(family: ChartFamily) -> CompiledFamily:
+    """The shared :class:`CompiledFamily` of ``family`` (one per ``family.key``)."""
+    key = family.key
+    with _REGISTRY_LOCK:
+        if key not in _REGISTRY:
+            _REGISTRY[key] = CompiledFamily(family)
+        return _REGISTRY[key]
+
+
+class ChartNumerics:
+    """One chart ``p = M z(a; theta) + m`` in the working precision, for a given ambient metric.
+
+    Parameters
+    ----------
+    chart
+        A :class:`~manifold.symbolic.SymbolicChart`.
+    K
+        The ambient metric; it must pull back to ``B (x) I_block``.
+    q_out
+        Switch threshold packed into the parameters.
+    fp_type
+        Working precision.
+
+    Attributes
+    ----------
+    pars
+        The runtime parameters ``(theta, B, q_out)`` in ``fp_type``.
+    """
+
+    def __init__(self, chart: Any, K: NDArray, q_out: float, fp_type: Any) -> None:
+        self.fp, self.k, self.N = fp_type, chart.dim, chart.ambient_dim
+        self.compiled = compiled(chart.family)
+        self.M = as_fp(chart.linear_map, fp_type)
+        self.M_inv = as_fp(chart.inverse_linear_map(), fp_type)
+        self.m = chart.offset(fp_type)
+        self.pars = self.compiled.layout.pack(chart.family_parameters, chart.core_metric(K), q_out, fp_type)
+        self._cf = self.compiled.transfer(fp_type)
+
+    def _eval(self, a: NDArray, c: NDArray, u: NDArray) -> NDArray:
+        """Batched transfer function: ``a``, ``c`` of shape ``(k, B)``, ``u`` of shape ``(N, B)``."""
+        args = as_fp(np.concatenate([a, c, u]), self.fp)
+        pars = self.pars[: self._cf.nparams, None]  # the transfer function does not use q_out
+        return self._cf(args, pars=np.repeat(pars, args.shape[1], axis=1))
+
+    def point_velocity_energy(self, a: NDArray, c: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        """``p = M z(a) + m`` and ``v = M J c`` (shape ``(B, N)``) and ``E`` (``(B,)``) for ``a, c`` of shape ``(k, B)``."""
+        out = self._eval(a, c, np.zeros((self.N, a.shape[1])))
+        z, Jc, E = out[: self.N], out[self.N : 2 * self.N], out[-1]
+        return (self.M @ z).T + self.m, (self.M @ Jc).T, E
+
+    def coefficients(self, a: NDArray, v: NDArray) -> NDArray:
+        """``c = g^{-1} J^T K v``: the K-orthogonal tangent coefficients of the embedded ``v``."""
+        out = self._eval(a[:, None], np.zeros((self.k, 1)), (self.M_inv @ v)[:, None])
+        return out[2 * self.N : 2 * self.N + self.k, 0]
+
+    def polish(self, a: NDArray, p: NDArray) -> NDArray:
+        """Gauss-Newton steps ``a += g^{-1} J^T W (z* - z(a))`` toward ``p`` in the working precision.
+
+        None in float64, where the closed-form inverse is already backward
+        stable.  Beyond, steps run until one is below 4 unit roundoffs: from a
+        point on the manifold (a switch) they converge quadratically, from a
+        float64 start off it by ~1e-16 per step, so 512 bits need ~10.
+        """
+        if is_double(self.fp):
+            return a
+        zero_c = np.zeros((self.k, 1))
+        target = self.M_inv @ (p - self.m)
+
+        def point(x: NDArray) -> NDArray:
+            return self._eval(x[:, None], zero_c, np.zeros((self.N, 1)))[: self.N, 0]
+
+        def solve(x: NDArray, r: NDArray) -> NDArray:
+            return self._eval(x[:, None], zero_c, r[:, None])[2 * self.N : 2 * self.N + self.k, 0]
+
+        max_steps = 2 + int(np.ceil(-np.log2(unit_roundoff(self.fp)) / 50))
+        return gauss_newton(a, target, point, solve, max_steps=max_steps, step_tol=4 * unit_roundoff(self.fp))

@@ -1,0 +1,83 @@
+"""Chart families: chart maps written as heyoka expressions, so that they can be compiled.
+
+A :class:`ChartFamily` is a parametrised map ``a -> z(a; theta)`` written as
+heyoka expressions, with the family parameters ``theta`` as runtime
+parameters ``par[0 .. n_params-1]``.  Everything compiled from it (geodesic
+integrator, transfer, acceleration, quality and Jacobian functions) lives in
+:class:`manifold.compiled.CompiledFamily`, one per ``family.key``.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Hashable, Sequence
+from typing import Any
+
+import heyoka as hy
+
+
+class ChartFamily(ABC):
+    """A family of chart maps ``z(a; theta)`` as heyoka expressions.
+
+    Attributes
+    ----------
+    dim
+        Number of chart parameters ``a``.
+    point_dim
+        Number of coordinates of ``z``.
+    block
+        ``z`` is made of ``point_dim / block`` points of ``R^block`` (2 for planar
+        hinges, 1 for plain coordinates); the ambient metric must be ``B (x) I_block``.
+    n_params
+        Number of family parameters ``theta``.
+    periodic
+        Indices of ``2 pi``-periodic parameters.  The integrator wraps them into
+        ``[-pi, pi]``: heyoka's error control is relative to the state's size,
+        so an angle left to grow to ``O(1000)`` would cost three digits.
+
+    A subclass implements :attr:`key`, :meth:`point_expressions` and
+    :meth:`quality_expressions`, and may implement :meth:`point_jets`.
+    Equality of families is equality of keys: compiled code is cached per key.
+    """
+
+    dim: int
+    point_dim: int
+    block: int
+    n_params: int
+    periodic: tuple[int, ...] = ()
+
+    @property
+    @abstractmethod
+    def key(self) -> Hashable:
+        """Identity of the family: two families with equal keys compile to the same code."""
+
+    @abstractmethod
+    def point_expressions(self, a: Sequence[hy.expression], fp_type: Any) -> list[hy.expression]:
+        """``z(a; theta)`` with ``theta = par[0 .. n_params-1]``, constants exact in ``fp_type``."""
+
+    def point_jets(self, a: Sequence[hy.expression], c: Sequence[hy.expression], fp_type: Any) -> list | None:
+        """``z`` as :class:`~manifold.jets.Jet` s along velocity ``c``, or ``None`` (the default).
+
+        A family that can run its formula on jets gets the geodesic equations
+        from one forward sweep instead of symbolic differentiation of the
+        expanded ``z``: much smaller for deep formulas.
+        """
+        return None
+
+    @abstractmethod
+    def quality_expressions(self, a: Sequence[hy.expression]) -> list[hy.expression]:
+        """Expressions whose minimum is the chart quality (empty: the chart is global).
+
+        Each one is also a switch event of the geodesic integrator
+        (``expression - q_out``, decreasing), so the numpy quality and the
+        events come from this one formula.
+        """
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, ChartFamily) and other.key == self.key
+
+    def __hash__(self) -> int:
+        return hash(self.key)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(key={self.key!r})"

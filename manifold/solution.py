@@ -1,0 +1,291 @@
+"""The one result type of every geodesic method: :class:`GeodesicSolution`.
+
+Whatever the stepper (heyoka's Taylor method, scipy's ``solve_ivp``), a solve
+returns a :class:`GeodesicSolution`: status and :class:`SolverStats`, the
+chart :class:`Segment` s and the :class:`ChartSwitch` log, the energy record,
+vectorised evaluation ``sol(ts)`` and ``sol.parameters(ts)`` from a compact
+dense output, the states on a requested time grid (``t_eval``), and the end
+state.  A failure raises :class:`GeodesicIntegrationError` carrying the
+partial solution, or, with ``throw=False``, is reported in ``status``.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .compiled import ChartNumerics
+from .metric import InducedMetric
+from .precision import as_fp
+
+
+class SolveStatus(enum.Enum):
+    """How a solve ended."""
+
+    SUCCESS = "success"
+    STEPPER_FAILED = "the stepper failed"
+    MAX_SWITCHES = "max_switches chart switches reached"
+    NO_GOOD_CHART = "no chart of quality above q_out"
+
+
+class GeodesicIntegrationError(RuntimeError):
+    """A solve did not reach ``t_final``; ``solution`` holds what was computed up to there."""
+
+    def __init__(self, message: str, solution: "GeodesicSolution") -> None:
+        super().__init__(message)
+        self.solution = solution
+
+
+@dataclass(frozen=True)
+class ChartSwitch:
+    """One chart switch: when, from which chart to which, and the qualities there."""
+
+    time: float
+    from_chart: int
+    to_chart: int
+    quality_from: float
+    quality_to: float
+    point_gap: float  # max |p_after - p_before| in the working precision: the transfer's own error
+
+
+@dataclass(frozen=True)
+class SolverStats:
+    """Counts and timings of one solve (wall-clock seconds)."""
+
+    n_steps: int
+    n_switches: int
+    n_wraps: int
+    compile_seconds: float  # building or fetching compiled code (about 0 once cached)
+    switch_seconds: float  # starting and switching charts (inverse maps, transfers)
+    wall_seconds: float  # the whole solve
+
+
+class DenseOutput(Protocol):
+    """Continuous output of one segment: states ``(len(ts), 2k)`` at times ``ts`` inside it."""
+
+    def __call__(self, ts: NDArray) -> NDArray: ...
+
+    @property
+    def nbytes(self) -> int: ...
+
+
+class TaylorDense:
+    """Taylor polynomials of every step: ``y(t) = sum_j tcs[s, :, j] (t - times[s])^j`` on step ``s``.
+
+    ``(order + 1) * 2k`` numbers per step, evaluated by a vectorised Horner
+    scheme in the working precision.
+    """
+
+    def __init__(self, times: NDArray, tcs: NDArray, fp_type: Any) -> None:
+        self.times, self.tcs, self.fp_type = times, tcs, fp_type
+        self._sign = 1.0 if times[-1] >= times[0] else -1.0
+        self._starts = np.asarray(times[:-1], dtype=float) * self._sign
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.times.nbytes + self.tcs.nbytes)
+
+    def __call__(self, ts: NDArray) -> NDArray:
+        s = np.searchsorted(self._starts, np.asarray(ts, dtype=float) * self._sign, side="right") - 1
+        s = np.clip(s, 0, len(self._starts) - 1)
+        h = as_fp(ts, self.fp_type) - self.times[s]
+        coeffs = self.tcs[s]  # (m, 2k, order+1)
+        out = coeffs[:, :, -1]
+        for j in range(coeffs.shape[2] - 2, -1, -1):
+            out = out * h[:, None] + coeffs[:, :, j]
+        return out
+
+
+class CallableDense:
+    """Dense output from a callable ``f(ts) -> (2k, len(ts))`` (scipy's ``OdeSolution``)."""
+
+    def __init__(self, f: Any, n_steps: int, dim: int) -> None:
+        self.f, self._nbytes = f, 8 * n_steps * dim * 8  # DOP853's interpolant: ~7 coefficients per component
+
+    @property
+    def nbytes(self) -> int:
+        return self._nbytes
+
+    def __call__(self, ts: NDArray) -> NDArray:
+        return np.asarray(self.f(np.asarray(ts, dtype=float))).T
+
+
+@dataclass
+class Segment:
+    """A stretch of the solution integrated in one chart, or in ambient coordinates.
+
+    ``chart`` is the chart index, whose state is ``(a, c)``; ``None`` for a
+    method that integrates the embedded point and velocity ``(p, v)`` directly
+    (hinge coordinates).  ``dense`` is ``None`` when not kept.
+    """
+
+    chart: int | None
+    t_start: Any
+    t_end: Any
+    n_steps: int
+    dense: DenseOutput | None = field(default=None, repr=False)
+
+
+@dataclass
+class GeodesicSolution:
+    """A geodesic stitched from chart segments.
+
+    Attributes
+    ----------
+    metric
+        The :class:`~manifold.metric.InducedMetric` (its atlas names the charts).
+    fp_type
+        Floating type of the integration.
+    method
+        Name of the stepper.
+    t_span
+        ``(0, t_final)`` requested (``t_final < 0`` for backward integration).
+    status, message
+        :class:`SolveStatus` and a sentence saying what happened.
+    segments, switches
+        :class:`Segment` s in integration order and the :class:`ChartSwitch` log.
+    energy_times, energies
+        Kinetic energy ``1/2 c^T g c`` at every step (``dense=True``) or at
+        every segment end (switches, angle wraps, ``t_final``).
+    t_eval, points, velocities
+        The requested output grid and the points and embedded velocities on it
+        (``None`` without ``t_eval``), in ``fp_type``.
+    final_state
+        ``(chart, a, c)`` where the solve stopped.
+    chart_numerics
+        Chart index -> :class:`~manifold.compiled.ChartNumerics` in ``fp_type``.
+    stats
+        :class:`SolverStats`.
+    """
+
+    metric: InducedMetric
+    fp_type: Any
+    method: str
+    t_span: tuple[float, float]
+    chart_numerics: dict[int, ChartNumerics] = field(repr=False)
+    status: SolveStatus = SolveStatus.SUCCESS
+    message: str = ""
+    segments: list[Segment] = field(default_factory=list, repr=False)
+    switches: list[ChartSwitch] = field(default_factory=list, repr=False)
+    energy_times: list = field(default_factory=list, repr=False)
+    energies: list = field(default_factory=list, repr=False)
+    t_eval: NDArray | None = field(default=None, repr=False)
+    points: NDArray | None = field(default=None, repr=False)
+    velocities: NDArray | None = field(default=None, repr=False)
+    final_state: tuple | None = field(default=None, repr=False)
+    stats: SolverStats | None = field(default=None, repr=False)
+
+    def __repr__(self) -> str:
+        err = f"{self.relative_energy_error:.1e}" if self.energies else "n/a"
+        wall = f", {self.stats.wall_seconds:.3g} s" if self.stats else ""
+        return (f"GeodesicSolution({self.method}, {self.status.value}, t = 0 -> {float(self.t_reached):g}, "
+                f"{self.n_steps} steps, {self.n_switches} switches, energy error {err}{wall})")
+
+    @property
+    def success(self) -> bool:
+        return self.status is SolveStatus.SUCCESS
+
+    @property
+    def t_reached(self) -> Any:
+        """Where the solve stopped (``t_final`` on success)."""
+        return self.segments[-1].t_end if self.segments else 0.0
+
+    @property
+    def n_switches(self) -> int:
+        return len(self.switches)
+
+    @property
+    def n_steps(self) -> int:
+        return sum(s.n_steps for s in self.segments)
+
+    @property
+    def dense_nbytes(self) -> int:
+        """Bytes held by the dense output."""
+        return sum(s.dense.nbytes for s in self.segments if s.dense is not None)
+
+    @property
+    def relative_energy_error(self) -> float:
+        """``max_t |E(t) - E(0)| / E(0)`` over the recorded energies (a float for every method)."""
+        E = np.array([float(e) for e in self.energies])
+        return float(np.max(np.abs(E - E[0])) / E[0]) if E[0] != 0 else float(np.max(np.abs(E)))
+
+    def end_state(self) -> tuple[NDArray, NDArray]:
+        """Point and embedded velocity where the solve stopped (available also with ``dense=False``)."""
+        i, a, c = self.final_state
+        if i is None:
+            return a, c
+        p, v, _ = self.chart_numerics[i].point_velocity_energy(a[:, None], c[:, None])
+        return p[0], v[0]
+
+    def _locate(self, ts: NDArray) -> NDArray:
+        """Segment index of each time in ``ts`` (1-d float); raises outside the span or without dense output."""
+        t0, t1 = 0.0, float(self.t_reached)
+        lo, hi = min(t0, t1), max(t0, t1)
+        bad = ~((ts >= lo) & (ts <= hi))  # also catches NaN
+        if np.any(bad):
+            raise ValueError(f"t = {ts[bad][:5]} lies outside the solution's time span [{lo}, {hi}]")
+        if any(s.dense is None for s in self.segments):
+            raise ValueError("the solution was computed with dense=False: no continuous output "
+                             "(use t_eval=... to record a grid, or dense=True)")
+        sign = 1.0 if t1 >= t0 else -1.0
+        ends = sign * np.array([float(s.t_end) for s in self.segments])
+        return np.minimum(np.searchsorted(ends, sign * ts, side="left"), len(self.segments) - 1)
+
+    def _states(self, flat: NDArray) -> tuple[NDArray, NDArray]:
+        """Segment index and dense state of each time in the 1-d ``flat``."""
+        seg = self._locate(flat)
+        rows = [(np.nonzero(seg == s)[0], self.segments[s].dense(flat[seg == s])) for s in np.unique(seg)]
+        width = max(vals.shape[1] for _, vals in rows)
+        states = np.empty((flat.size, width), dtype=rows[0][1].dtype)
+        for sel, vals in rows:
+            states[sel, : vals.shape[1]] = vals
+        return seg, states
+
+    def parameters(self, t: ArrayLike) -> tuple:
+        """Chart index, parameters ``a`` and coefficients ``c`` at time(s) ``t``.
+
+        Scalar ``t``: ``(i, a, c)`` with ``a, c`` of shape ``(k,)``.  Array
+        ``t`` (any shape): arrays of shapes ``t.shape``, ``t.shape + (k,)`` twice.
+        A segment integrated in ambient coordinates is read in the best chart
+        of the atlas at each time (float64 inverse).
+        """
+        ts = np.asarray(t, dtype=float)
+        flat = ts.ravel()
+        seg, states = self._states(flat)
+        k, N = self.metric.atlas.dim, self.metric.atlas.ambient_dim
+        charts = np.empty(flat.size, dtype=int)
+        a = np.empty((flat.size, k), dtype=states.dtype)
+        c = np.empty((flat.size, k), dtype=states.dtype)
+        for m, s in enumerate(seg):
+            chart = self.segments[s].chart
+            if chart is None:
+                p, v = states[m, :N].astype(float), states[m, N : 2 * N].astype(float)
+                charts[m], a_m = self.metric.atlas.best_chart(p)
+                a[m], c[m] = a_m, self.metric.atlas.charts[charts[m]].coefficients(a_m, v)
+            else:
+                charts[m], a[m], c[m] = chart, states[m, :k], states[m, k : 2 * k]
+        if ts.ndim == 0:
+            return int(charts[0]), a[0], c[0]
+        return charts.reshape(ts.shape), a.reshape(*ts.shape, k), c.reshape(*ts.shape, k)
+
+    def __call__(self, t: ArrayLike) -> tuple[NDArray, NDArray]:
+        """Point ``p(t)`` and embedded velocity ``v(t)`` (shape ``t.shape + (N,)``) in the working precision."""
+        ts = np.asarray(t, dtype=float)
+        flat = ts.ravel()
+        seg, states = self._states(flat)
+        N, k = self.metric.atlas.ambient_dim, self.metric.atlas.dim
+        ps = np.empty((flat.size, N), dtype=states.dtype)
+        vs = np.empty((flat.size, N), dtype=states.dtype)
+        charts = np.array([-1 if self.segments[s].chart is None else self.segments[s].chart for s in seg])
+        for i in np.unique(charts):
+            sel = np.nonzero(charts == i)[0]
+            if i < 0:  # ambient coordinates
+                ps[sel], vs[sel] = states[sel, :N], states[sel, N : 2 * N]
+            else:
+                ps[sel], vs[sel], _ = self.chart_numerics[int(i)].point_velocity_energy(
+                    states[sel, :k].T, states[sel, k : 2 * k].T)
+        return ps.reshape(*ts.shape, N), vs.reshape(*ts.shape, N)

@@ -1,0 +1,193 @@
+"""Steppers: what advances the state inside one chart, between chart switches.
+
+The atlas loop (:func:`manifold.geodesic_solver.solve_chart_exp_ode`) is
+written once; a stepper only integrates the active chart's geodesic equations
+from ``(t, y)`` until ``t_final`` or a terminal event, and says which.  Events
+are numbered as in :meth:`~manifold.geodesic_system.SymbolicPieces.events`:
+first the ``n_quality`` switch events, then two wrap events per periodic
+parameter.
+
+To add a stepper, subclass :class:`Stepper` and implement :meth:`Stepper.session`:
+a context manager that prepares what the stepper needs for one solve
+(compiled code, private mutable state) and yields an ``advance`` function
+returning an :class:`Advance`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+import heyoka as hy
+import numpy as np
+from numpy.typing import NDArray
+from scipy.integrate import solve_ivp
+
+from .compiled import CompiledFamily
+from .precision import is_double
+from .solution import CallableDense, DenseOutput, TaylorDense
+
+
+@dataclass
+class Advance:
+    """Where a stepper stopped and why.
+
+    Attributes
+    ----------
+    t, y
+        Time and state ``(a, c)`` reached, in the working precision.
+    n_steps
+        Accepted steps.
+    event
+        Index of the terminal event that stopped it; ``None`` if it reached ``t_final``.
+    step_times, step_states
+        Times after the start and states there (shape ``(m, 2k)``) at which the
+        energy is recorded: every step with ``dense``, else only the end.
+    dense
+        Continuous output of the segment (``None`` unless asked for).
+    failure
+        Why the stepper broke down (``None`` if it did not).
+    """
+
+    t: Any
+    y: NDArray
+    n_steps: int
+    event: int | None
+    step_times: NDArray
+    step_states: NDArray
+    dense: DenseOutput | None = None
+    failure: str | None = None
+
+
+#: ``advance(t, y, t_final, pars, dense) -> Advance``
+AdvanceFunction = Callable[[Any, NDArray, Any, NDArray, bool], Advance]
+
+
+class Stepper(ABC):
+    """Integrates one chart's geodesic equations between events (see the module docstring)."""
+
+    name: str
+
+    @abstractmethod
+    def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
+                switching: bool) -> Any:
+        """Context manager yielding an :data:`AdvanceFunction` private to one solve."""
+
+
+class TaylorStepper(Stepper):
+    """heyoka's adaptive Taylor method with event detection (any precision).
+
+    Parameters
+    ----------
+    tol
+        heyoka's tolerance; ``None`` is its default, the machine epsilon of ``fp_type``.
+    """
+
+    name = "taylor"
+
+    def __init__(self, tol: float | None = None) -> None:
+        self.tol = tol
+
+    def __repr__(self) -> str:
+        return f"TaylorStepper(tol={self.tol!r})"
+
+    @contextmanager
+    def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
+                switching: bool) -> Iterator[AdvanceFunction]:
+        with family.integrator(fp_type, self.tol, form, backward) as ta:
+            n_events = len(ta.t_events) if ta.with_events else 0
+
+            def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
+                ta.state[:] = y
+                ta.time = t
+                ta.pars[:] = pars[: len(ta.pars)]
+                if ta.with_events:
+                    ta.reset_cooldowns()
+                outcome, _, _, n_steps, cout, *_ = ta.propagate_until(t_final, c_output=dense)
+                y_end = np.array(ta.state)
+                event, failure = None, None
+                if outcome != hy.taylor_outcome.time_limit:
+                    event = -outcome.value - 1  # heyoka reports terminal event k as outcome -(k + 1)
+                    if not 0 <= event < n_events:
+                        event, failure = None, str(outcome)
+                out = None
+                if dense and cout is not None and n_steps > 0:
+                    out = TaylorDense(np.array(cout.times), np.array(cout.tcs), fp_type)
+                    times = out.times[1:]
+                    states = np.concatenate([out.tcs[1:, :, 0], y_end[None, :]])  # a step's order-0 term is its start
+                else:
+                    times, states = np.array([ta.time]), y_end[None, :]
+                return Advance(ta.time, y_end, n_steps, event, times, states, out, failure)
+
+            yield advance
+
+
+class ScipyStepper(Stepper):
+    """``scipy.integrate.solve_ivp`` on the family's compiled acceleration (float64 only), for comparisons.
+
+    Parameters
+    ----------
+    method
+        Any ``solve_ivp`` method (``"DOP853"``, ``"RK45"``, ``"Radau"``, ...).
+    rtol, atol
+        scipy's tolerances.
+    """
+
+    def __init__(self, method: str = "DOP853", rtol: float = 1e-12, atol: float = 1e-12) -> None:
+        self.method, self.rtol, self.atol = method, rtol, atol
+        self.name = f"scipy-{method}"
+
+    def __repr__(self) -> str:
+        return f"ScipyStepper({self.method!r}, rtol={self.rtol!r}, atol={self.atol!r})"
+
+    @contextmanager
+    def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
+                switching: bool) -> Iterator[AdvanceFunction]:
+        if not is_double(fp_type):
+            raise ValueError(f"the scipy stepper runs in float64 only, got fp_type = {fp_type!r}")
+        k = family.family.dim
+        acc = family.acceleration(float, form)
+        qcf = family.quality(float) if switching else None
+        current = {"pars": np.zeros(0)}
+        events: list = []  # scipy's events, each with its index in the canonical numbering
+        indices: list[int] = []
+        if qcf is not None:
+            for m in range(family.n_quality):
+                def quality(t: float, y: NDArray, m: int = m) -> float:
+                    pars = current["pars"]
+                    return qcf(y[:k], pars=pars[: qcf.nparams])[m] - pars[family.layout.q_out_index]
+                events.append(_terminal(quality, -1))
+                indices.append(m)
+        for w, p in enumerate(family.family.periodic):
+            events += [_terminal(lambda t, y, p=p: y[p] - np.pi, 1), _terminal(lambda t, y, p=p: y[p] + np.pi, -1)]
+            indices += [family.n_quality + 2 * w, family.n_quality + 2 * w + 1]
+        # scipy's event directions follow the integration (unlike heyoka's): no mirroring when backward
+
+        def rhs(_t: float, y: NDArray) -> NDArray:
+            return np.concatenate([y[k:], acc(np.ascontiguousarray(y), pars=current["pars"][: acc.nparams])])
+
+        def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
+            current["pars"] = np.asarray(pars, dtype=float)
+            res = solve_ivp(rhs, (float(t), float(t_final)), np.asarray(y, dtype=float), method=self.method,
+                            rtol=self.rtol, atol=self.atol, events=events or None, dense_output=dense)
+            n_steps = len(res.t) - 1
+            out = CallableDense(res.sol, n_steps, 2 * k) if dense and res.sol is not None else None
+            event, failure = None, None
+            if res.status == -1:
+                failure = f"{self.method} failed at t = {res.t[-1]}: {res.message}"
+            elif res.status == 1:
+                event = indices[next(m for m, te in enumerate(res.t_events) if len(te))]
+            y_end = res.y[:, -1].copy()
+            states = res.y[:, 1:].T if dense else y_end[None, :]
+            times = res.t[1:] if dense else res.t[-1:]
+            return Advance(res.t[-1], y_end, n_steps, event, times, states, out, failure)
+
+        yield advance
+
+
+def _terminal(f: Callable, direction: int) -> Callable:
+    f.terminal, f.direction = True, direction  # type: ignore[attr-defined]
+    return f
