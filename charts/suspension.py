@@ -18,7 +18,7 @@ from manifold.precision import as_fp
 from manifold.symbolic import SymbolicChart
 
 from . import suspension_formula as formula
-from .backends import NUMPY, Cx
+from manifold.backends import NUMPY, Cx
 from .chain_geometry import (
     closure_residual,
     relabel_hinges,

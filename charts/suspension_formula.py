@@ -19,7 +19,7 @@ smooth across ``t = +-pi/2``.  Level ``m = 2`` is ``S^0``:
 ``p_1 = (D + i sheet sqrt(4 - D^2)) / 2``.
 
 Functions here take and return lists of scalars (numpy arrays or heyoka
-expressions) and :class:`~charts.backends.Cx` pairs; they know nothing of
+expressions) and :class:`~manifold.backends.Cx` pairs; they know nothing of
 rod relabelings, batching or validation (see :mod:`charts.suspension`).
 """
 
@@ -28,7 +28,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from .backends import Cx
+from manifold.backends import Cx
 
 
 class Base:
@@ -117,7 +117,7 @@ def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1) -> list[Cx]:
     L
         Base length (scalar, array or heyoka expression).
     ops
-        Math backend (:data:`charts.backends.NUMPY` or :class:`charts.backends.HeyokaOps`).
+        Math backend (:data:`manifold.backends.NUMPY` or :class:`manifold.backends.HeyokaOps`).
     sheet
         ``+1`` or ``-1``: the point of ``S^0`` for ``n = 2`` (ignored otherwise).
     """

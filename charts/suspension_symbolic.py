@@ -20,7 +20,7 @@ from manifold.jets import Jet, JetOps
 from manifold.family import ChartFamily
 
 from . import suspension_formula as formula
-from .backends import HeyokaOps
+from manifold.backends import HeyokaOps
 
 
 def hinge_expressions(a: list, fp_type: type = float, L=hy.par[0]) -> list:

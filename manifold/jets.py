@@ -98,7 +98,7 @@ class Jet:
 
 
 class JetOps:
-    """Math backend on jets, over a base backend for the values (e.g. :class:`charts.backends.HeyokaOps`).
+    """Math backend on jets, over a base backend for the values (e.g. :class:`manifold.backends.HeyokaOps`).
 
     Provides ``sin``, ``cos``, ``sqrt``, ``atan2``; formulas built from these and
     arithmetic (the base backend's ``sinc`` and ``one_minus_sin`` among them,

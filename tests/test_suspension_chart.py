@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 from charts import SuspensionChart
 from charts.chain_geometry import closure_residual, to_complex
 from charts import suspension_formula as formula
-from charts.backends import NUMPY
+from manifold.backends import NUMPY
 from manifold import ChartDomainError
 
 from .conftest import (

@@ -17,7 +17,8 @@ import time
 import heyoka as hy
 import numpy as np
 
-from charts import backends, suspension_formula
+from charts import suspension_formula
+from manifold import backends
 from linkage import Chain
 from manifold import ChartFamily, compiled, solve_chart_exp_ode
 from manifold.geodesic_system import SymbolicPieces

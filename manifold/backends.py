@@ -1,6 +1,6 @@
 """Math backends for formulas written once and evaluated two ways.
 
-A formula in :mod:`charts.suspension_formula` calls ``ops.sin``, ``ops.sqrt``,
+A formula (such as :mod:`charts.suspension_formula`) calls ``ops.sin``, ``ops.sqrt``,
 ... and the arithmetic operators.  With :data:`NUMPY` it evaluates numpy arrays
 (float64 or long double, any batch shape); with :class:`HeyokaOps` it builds
 heyoka expressions that heyoka can differentiate and compile into Taylor
@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from manifold.precision import unit_roundoff
+from .precision import unit_roundoff
 
 
 @dataclass(frozen=True)
