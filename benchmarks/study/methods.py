@@ -16,12 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from linkage import Chain
-from charts.seed_geodesics import integrate_seed_rk4
 from linkage.ambient import integrate_ambient
-from linkage.rattle import integrate_rattle
 from manifold import geodesic_system as gs
 from manifold.geodesic_solver import GeodesicIntegrationError, solve_chart_exp_ode
 from manifold.scipy_geodesics import _quality_cfunc, solve_chart_exp_ode_scipy
+
+from ..baselines.rattle import integrate_rattle
+from ..baselines.seed_geodesics import integrate_seed_rk4
 
 
 @dataclass

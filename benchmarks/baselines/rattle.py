@@ -46,8 +46,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from charts.chain_geometry import to_complex
 
-from .ambient import _check_time, _ConstrainedSystem, start_state
-from .chain import Chain
+from linkage import Chain
+from linkage.ambient import _check_time, _ConstrainedSystem, start_state
 
 __all__ = ["RattleSolution", "integrate_rattle"]
 

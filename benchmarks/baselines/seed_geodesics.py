@@ -2,7 +2,7 @@
 
 A faithful transcription, kept as a baseline to compare the library against:
 
-* the closed-form metric ``metric4(phi, t, L)`` of :mod:`charts.seed_metric4`
+* the closed-form metric ``metric4(phi, t, L)`` of :mod:`benchmarks.baselines.seed_metric4`
   (unit hinge masses, massless rods, identity rod order, coordinates
   ``a = (phi, t) = (phi_4, t)`` of ``SuspensionChart(4, L)``), with
   ``E = h_phiphi``, ``F = h_phit``, ``G = h_tt``;
@@ -53,9 +53,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .chain_geometry import validate_chain
+from charts import SuspensionChart, validate_chain
+
 from .seed_metric4 import metric4
-from .suspension import SuspensionChart
 
 __all__ = ["SEED_EPS", "SeedSolution", "integrate_seed_rk4", "seed_vector_field"]
 
