@@ -28,12 +28,13 @@ configuration sphere, traversed at constant kinetic energy ``1/2 x'^T K x'``.
 No chart is used, so this is an independent reference for the chart-based
 geodesics.  The constraints hold only to integration accuracy (the equation
 keeps ``c'' = 0``, not ``c = 0``); ``project=True`` pulls the state back onto
-the constraint and tangent manifolds at regular intervals.
+the constraint and tangent manifolds at regular intervals.  The constraint
+geometry (``c``, ``G``, the K-orthogonal corrections and projections) is
+:class:`linkage.constraints.HingeConstraints`.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,75 +42,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
 from charts.chain_geometry import to_complex, to_real
+from manifold.validation import check_real
 
 from .chain import Chain
+from .constraints import HingeConstraints
 
-__all__ = ["AmbientSolution", "integrate_ambient"]
-
-#: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
-_PROJECTION_STEPS = 8
-
-
-class _ConstrainedSystem:
-    """Constraint geometry and the right-hand side for one chain (all real, interleaved)."""
-
-    def __init__(self, chain: Chain) -> None:
-        self.n, self.L = chain.n, chain.L
-        self.m = 2 * (self.n - 1)
-        self.K = chain.ambient_metric
-        self.K_inv = np.kron(np.linalg.inv(chain.mass_matrix), np.eye(2))
-
-    def _rods(self, x: NDArray) -> NDArray:
-        """Real rod vectors ``(n, 2)`` of the real hinge vector ``x``."""
-        pts = np.concatenate([[[0.0, 0.0]], x.reshape(-1, 2), [[self.L, 0.0]]])
-        return np.diff(pts, axis=0)
-
-    def _rod_velocities(self, v: NDArray) -> NDArray:
-        """``e_k'`` ``(n, 2)``: the pins do not move."""
-        return np.diff(np.concatenate([[[0.0, 0.0]], v.reshape(-1, 2), [[0.0, 0.0]]]), axis=0)
-
-    def constraints(self, x: NDArray) -> NDArray:
-        """``c_k = |e_k|^2 - 1``, shape ``(n,)``."""
-        return np.sum(self._rods(x) ** 2, axis=1) - 1.0
-
-    def jacobian(self, x: NDArray) -> NDArray:
-        """``G = dc/dx``, ``(n, 2(n-1))``: row ``k`` is ``+2 e_k`` at hinge ``k``, ``-2 e_k`` at hinge ``k-1``."""
-        E = self._rods(x)
-        j = np.arange(self.n - 1)
-        G = np.zeros((self.n, self.n - 1, 2))
-        G[j, j] = 2.0 * E[:-1]
-        G[j + 1, j] = -2.0 * E[1:]
-        return G.reshape(self.n, self.m)
-
-    def _correction(self, G: NDArray, r: NDArray) -> NDArray:
-        """``K^{-1} G^T (G K^{-1} G^T)^{-1} r``: the K-smallest ``d`` with ``G d = r``."""
-        KiGt = self.K_inv @ G.T
-        return KiGt @ np.linalg.solve(G @ KiGt, r)
-
-    def rhs(self, t: float, y: NDArray) -> NDArray:
-        """``(x, v)' = (v, K^{-1} G^T (G K^{-1} G^T)^{-1} (-2 |e'|^2))``."""
-        x, v = y[: self.m], y[self.m :]
-        Ed = self._rod_velocities(v)
-        a = self._correction(self.jacobian(x), -2.0 * np.sum(Ed**2, axis=1))
-        return np.concatenate([v, a])
-
-    def project_velocity(self, x: NDArray, v: NDArray) -> NDArray:
-        """K-orthogonal projection ``v - K^{-1} G^T (G K^{-1} G^T)^{-1} G v`` onto the tangent space."""
-        G = self.jacobian(x)
-        return v - self._correction(G, G @ v)
-
-    def project_position(self, x: NDArray) -> NDArray:
-        """Gauss-Newton steps ``x <- x - K^{-1} G^T (G K^{-1} G^T)^{-1} c(x)`` onto ``c = 0``."""
-        for _ in range(_PROJECTION_STEPS):
-            c = self.constraints(x)
-            if np.max(np.abs(c)) < 1e-15:
-                break
-            x = x - self._correction(self.jacobian(x), c)
-        return x
-
-    def project(self, y: NDArray) -> NDArray:
-        x = self.project_position(y[: self.m])
-        return np.concatenate([x, self.project_velocity(x, y[self.m :])])
+__all__ = ["AmbientSolution", "integrate_ambient", "start_state"]
 
 
 class _DenseOutput:
@@ -184,16 +122,6 @@ class AmbientSolution:
         return h.reshape(*t.shape, -1), v.reshape(*t.shape, -1)
 
 
-def _check_time(name: str, value: float, positive: bool = False) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real number, got {value!r}") from None
-    if not math.isfinite(value) or (positive and value <= 0):
-        raise ValueError(f"{name} must be finite{' and > 0' if positive else ''}, got {value!r}")
-    return value
-
-
 def _segment_bounds(t_final: float, interval: float | None) -> NDArray:
     """``0 = b_0, b_1, ..., b_m = t_final`` spaced by ``interval`` (one segment if ``None``)."""
     T = abs(t_final)
@@ -207,12 +135,32 @@ def _segment_bounds(t_final: float, interval: float | None) -> NDArray:
 
 def start_state(
     chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, tangent_tol: float, project_velocity: bool
-) -> tuple["_ConstrainedSystem", NDArray, NDArray, float]:
-    """Validate a hinge-space start; return the constraint system, real ``x0``, ``v0`` and ``t_final``.
+) -> tuple[HingeConstraints, NDArray, NDArray, float]:
+    """Validate the start of a hinge-space integration (shared by every hinge-space method).
 
-    ``hinges0`` must close (``ConfigurationError``), ``velocity0`` be finite and
-    tangent (``max_k |(G v)_k| <= tangent_tol * max(1, |v|)``) unless
-    ``project_velocity``, which projects it K-orthogonally; ``t_final`` finite, nonzero.
+    Parameters
+    ----------
+    chain
+        The chain.
+    hinges0
+        Complex initial hinges; must close to ``1e-9`` (else ``ConfigurationError``).
+    velocity0
+        Complex initial hinge velocities, ``n - 1`` finite entries, tangent:
+        ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)`` (else ``ValueError``)
+        unless ``project_velocity``.
+    t_final
+        End time, finite and nonzero (:func:`manifold.validation.check_real`).
+    tangent_tol
+        Relative tolerance of the tangency check, ``> 0``.
+    project_velocity
+        Replace a non-tangent ``velocity0`` by its K-orthogonal projection
+        :meth:`HingeConstraints.project_velocity` instead of refusing it.
+
+    Returns
+    -------
+    tuple
+        ``(constraints, x0, v0, t_final)``: the chain's :class:`HingeConstraints`,
+        the real interleaved start position and velocity, and ``t_final`` as a float.
     """
     h0 = chain.check_configuration(hinges0, tol=1e-9)
     v0 = np.asarray(velocity0)
@@ -220,11 +168,9 @@ def start_state(
         raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
     if not np.all(np.isfinite(v0)):
         raise ValueError(f"velocity0 must be finite, got {v0}")
-    t_final = _check_time("t_final", t_final)
-    if t_final == 0:
-        raise ValueError("t_final must be nonzero (the end time of the integration from t = 0)")
-    tangent_tol = _check_time("tangent_tol", tangent_tol, positive=True)
-    system = _ConstrainedSystem(chain)
+    t_final = check_real("t_final", t_final, nonzero=True)
+    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
+    system = HingeConstraints(chain)
     x0, v0 = to_real(h0).astype(float), to_real(v0.astype(complex)).astype(float)
     residual = np.max(np.abs(system.jacobian(x0) @ v0))
     if residual > tangent_tol * max(1.0, np.linalg.norm(v0)):
@@ -303,7 +249,7 @@ def integrate_ambient(
     AmbientSolution
     """
     system, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
-    interval = _check_time("projection_interval", projection_interval, positive=True) if project else None
+    interval = check_real("projection_interval", projection_interval, positive=True) if project else None
 
     if t_eval is not None:
         t_eval = np.asarray(t_eval, dtype=float)
@@ -311,12 +257,18 @@ def integrate_ambient(
         if t_eval.ndim != 1 or not np.all((t_eval >= lo) & (t_eval <= hi)):
             raise ValueError(f"t_eval must be a 1-d array of times within [0, {t_final:g}], got {t_eval}")
 
+    m = system.ambient_dim
+
+    def rhs(t: float, y: NDArray) -> NDArray:
+        """``(x, v)' = (v, x'')`` with ``x''`` from :meth:`HingeConstraints.acceleration`."""
+        return np.concatenate([y[m:], system.acceleration(y[:m], y[m:])])
+
     bounds = _segment_bounds(t_final, interval)
     y = np.concatenate([x0, v0])
     starts, interpolants, ts, ys = [], [], [], []
     nfev, success, message, t_reached = 0, True, "", 0.0
     for a, b in zip(bounds[:-1], bounds[1:]):
-        sol = solve_ivp(system.rhs, (a, b), y, method=method, rtol=rtol, atol=atol, dense_output=True)
+        sol = solve_ivp(rhs, (a, b), y, method=method, rtol=rtol, atol=atol, dense_output=True)
         nfev += sol.nfev
         message = sol.message
         if sol.t.size < 2:  # failed on its very first step
@@ -343,7 +295,7 @@ def integrate_ambient(
         t = t_eval[(t_eval * np.sign(t_final)) <= abs(t_reached)]
         states = dense_output(t)
     hinges, velocities = np.split(to_complex(states), 2, axis=-1)
-    v = states[:, system.m :]
+    v = states[:, m:]
     return AmbientSolution(
         t=t,
         hinges=hinges,
