@@ -163,15 +163,13 @@ def start_state(
         the real interleaved start position and velocity, and ``t_final`` as a float.
     """
     h0 = chain.check_configuration(hinges0, tol=1e-9)
-    v0 = np.asarray(velocity0)
+    v0 = chain.as_hinges(velocity0, "velocity0")
     if v0.shape != (chain.n - 1,):
         raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
-    if not np.all(np.isfinite(v0)):
-        raise ValueError(f"velocity0 must be finite, got {v0}")
     t_final = check_real("t_final", t_final, nonzero=True)
     tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
     system = HingeConstraints(chain)
-    x0, v0 = to_real(h0).astype(float), to_real(v0.astype(complex)).astype(float)
+    x0, v0 = to_real(h0).astype(float), to_real(v0).astype(float)
     residual = np.max(np.abs(system.jacobian(x0) @ v0))
     if residual > tangent_tol * max(1.0, np.linalg.norm(v0)):
         if not project_velocity:
