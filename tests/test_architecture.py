@@ -1,6 +1,9 @@
 """The layout shows the architecture: manifold <- charts <- linkage, never back."""
 
 import ast
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -27,3 +30,11 @@ def test_lower_layers_do_not_import_higher_ones(package):
     for f in files:
         bad = _imported_packages(f) & FORBIDDEN[package]
         assert not bad, f"{f.relative_to(ROOT)} imports {bad}"
+
+
+def test_import_linkage_loads_no_plotting_library():
+    """``linkage.draw`` imports matplotlib inside its functions only (checked in a fresh interpreter)."""
+    code = "import linkage, sys; assert not any(m.startswith('matplotlib') for m in sys.modules), 'matplotlib loaded'"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    run = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
