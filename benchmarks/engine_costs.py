@@ -38,12 +38,12 @@ def main(n: int = 4, L: float = 2.6, T: float = 3000.0) -> dict:
     chain = Chain(n, L)
     metric = chain.metric()
     atlas = metric.atlas
-    rng = np.random.default_rng(0)
-    a = np.append(rng.uniform(-0.6, 0.6, n - 3), 0.4)
+    a = np.append(np.full(n - 3, 0.3), 0.4)
     p0 = atlas.get_point(0, a)
-    v0 = atlas.charts[0].tangent_vector(a, rng.normal(size=n - 2))
+    v0 = atlas.charts[0].tangent_vector(a, np.resize([0.7, -0.4], n - 2))
     solve_chart_exp_ode(metric, p0, v0, 20.0)  # compile, warm every cache
     start = _median_seconds(lambda: solve_chart_exp_ode(metric, p0, v0, 1e-6, dense=False))
+    start_only = solve_chart_exp_ode(metric, p0, v0, 1e-6, dense=False).stats.switch_seconds
     best = _median_seconds(lambda: atlas.best_chart(p0))
     big = solve_chart_exp_ode(metric, p0, v0, T)
     s = big.stats
@@ -57,7 +57,7 @@ def main(n: int = 4, L: float = 2.6, T: float = 3000.0) -> dict:
            for pkg in ("manifold", "charts", "linkage")}
     out = {
         "start_ms": 1e3 * start,
-        "switch_ms": 1e3 * (s.switch_seconds - start) / max(s.n_switches, 1),
+        "switch_ms": 1e3 * (s.switch_seconds - start_only) / max(s.n_switches, 1),
         "best_chart_ms": 1e3 * best,
         "dense_bytes_per_step": big.dense_nbytes / big.n_steps,
         "dense_minimum_bytes_per_step": minimum,

@@ -5,6 +5,7 @@ See ``linkage/README.md``.
 """
 
 from .chain import Chain, ConfigurationError
+from .constraints import HingeConstraints
 from .draw import draw_configuration, draw_configurations
 
-__all__ = ["Chain", "ConfigurationError", "draw_configuration", "draw_configurations"]
+__all__ = ["Chain", "ConfigurationError", "HingeConstraints", "draw_configuration", "draw_configurations"]

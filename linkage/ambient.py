@@ -28,170 +28,33 @@ configuration sphere, traversed at constant kinetic energy ``1/2 x'^T K x'``.
 No chart is used, so this is an independent reference for the chart-based
 geodesics.  The constraints hold only to integration accuracy (the equation
 keeps ``c'' = 0``, not ``c = 0``); ``project=True`` pulls the state back onto
-the constraint and tangent manifolds at regular intervals.
+the constraint and tangent manifolds at regular intervals.  The constraint
+geometry (``c``, ``G``, the K-orthogonal corrections and projections) is
+:class:`linkage.constraints.HingeConstraints`.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+import time
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
-from charts.chain_geometry import to_complex, to_real
+from charts.chain_geometry import to_real
+from manifold import CallableDense, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
+from manifold.validation import check_real
 
 from .chain import Chain
+from .constraints import HingeConstraints
+from .motion import ChainMotion
 
-__all__ = ["AmbientSolution", "integrate_ambient"]
-
-#: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
-_PROJECTION_STEPS = 8
-
-
-class _ConstrainedSystem:
-    """Constraint geometry and the right-hand side for one chain (all real, interleaved)."""
-
-    def __init__(self, chain: Chain) -> None:
-        self.n, self.L = chain.n, chain.L
-        self.m = 2 * (self.n - 1)
-        self.K = chain.ambient_metric
-        self.K_inv = np.kron(np.linalg.inv(chain.mass_matrix), np.eye(2))
-
-    def _rods(self, x: NDArray) -> NDArray:
-        """Real rod vectors ``(n, 2)`` of the real hinge vector ``x``."""
-        pts = np.concatenate([[[0.0, 0.0]], x.reshape(-1, 2), [[self.L, 0.0]]])
-        return np.diff(pts, axis=0)
-
-    def _rod_velocities(self, v: NDArray) -> NDArray:
-        """``e_k'`` ``(n, 2)``: the pins do not move."""
-        return np.diff(np.concatenate([[[0.0, 0.0]], v.reshape(-1, 2), [[0.0, 0.0]]]), axis=0)
-
-    def constraints(self, x: NDArray) -> NDArray:
-        """``c_k = |e_k|^2 - 1``, shape ``(n,)``."""
-        return np.sum(self._rods(x) ** 2, axis=1) - 1.0
-
-    def jacobian(self, x: NDArray) -> NDArray:
-        """``G = dc/dx``, ``(n, 2(n-1))``: row ``k`` is ``+2 e_k`` at hinge ``k``, ``-2 e_k`` at hinge ``k-1``."""
-        E = self._rods(x)
-        j = np.arange(self.n - 1)
-        G = np.zeros((self.n, self.n - 1, 2))
-        G[j, j] = 2.0 * E[:-1]
-        G[j + 1, j] = -2.0 * E[1:]
-        return G.reshape(self.n, self.m)
-
-    def _correction(self, G: NDArray, r: NDArray) -> NDArray:
-        """``K^{-1} G^T (G K^{-1} G^T)^{-1} r``: the K-smallest ``d`` with ``G d = r``."""
-        KiGt = self.K_inv @ G.T
-        return KiGt @ np.linalg.solve(G @ KiGt, r)
-
-    def rhs(self, t: float, y: NDArray) -> NDArray:
-        """``(x, v)' = (v, K^{-1} G^T (G K^{-1} G^T)^{-1} (-2 |e'|^2))``."""
-        x, v = y[: self.m], y[self.m :]
-        Ed = self._rod_velocities(v)
-        a = self._correction(self.jacobian(x), -2.0 * np.sum(Ed**2, axis=1))
-        return np.concatenate([v, a])
-
-    def project_velocity(self, x: NDArray, v: NDArray) -> NDArray:
-        """K-orthogonal projection ``v - K^{-1} G^T (G K^{-1} G^T)^{-1} G v`` onto the tangent space."""
-        G = self.jacobian(x)
-        return v - self._correction(G, G @ v)
-
-    def project_position(self, x: NDArray) -> NDArray:
-        """Gauss-Newton steps ``x <- x - K^{-1} G^T (G K^{-1} G^T)^{-1} c(x)`` onto ``c = 0``."""
-        for _ in range(_PROJECTION_STEPS):
-            c = self.constraints(x)
-            if np.max(np.abs(c)) < 1e-15:
-                break
-            x = x - self._correction(self.jacobian(x), c)
-        return x
-
-    def project(self, y: NDArray) -> NDArray:
-        x = self.project_position(y[: self.m])
-        return np.concatenate([x, self.project_velocity(x, y[self.m :])])
+__all__ = ["integrate_ambient", "start_state"]
 
 
-class _DenseOutput:
-    """Piecewise dense output: segment ``i`` owns ``[starts[i], starts[i+1])``; ``span[1]`` maps to ``final``."""
-
-    def __init__(self, starts: list[float], interpolants: list, final: NDArray, span: tuple[float, float]) -> None:
-        self.starts, self.interpolants, self.final, self.span = np.array(starts), interpolants, final, span
-
-    def __call__(self, t: NDArray) -> NDArray:
-        """Real states ``(len(t), 4(n-1))`` at the 1-d times ``t`` (assumed within ``span``)."""
-        s = 1.0 if self.span[1] >= self.span[0] else -1.0
-        seg = np.searchsorted(s * self.starts, s * t, side="right") - 1
-        seg = np.clip(seg, 0, len(self.interpolants) - 1)
-        out = np.empty((t.size, self.final.size))
-        for i, interpolant in enumerate(self.interpolants):
-            mask = seg == i
-            if np.any(mask):
-                out[mask] = interpolant(t[mask]).T
-        out[t == self.span[1]] = self.final
-        return out
-
-
-@dataclass
-class AmbientSolution:
-    """Result of :func:`integrate_ambient`.
-
-    Attributes
-    ----------
-    t
-        Output times: ``t_eval`` if given, otherwise the solver's steps.
-    hinges, velocities
-        Complex hinges ``p_j(t)`` and velocities ``p_j'(t)``, shape ``(len(t), n-1)``.
-    energy
-        Kinetic energy ``1/2 v^T K v`` at each output time (conserved by the exact flow).
-    constraint_residual
-        ``max_k | |e_k| - 1 |`` at each output time (0 for the exact flow).
-    nfev
-        Right-hand-side evaluations, summed over all segments.
-    success
-        Whether the integration reached ``t_final``.
-    message
-        The solver's message (of the failing segment, if any).
-    span
-        ``(0, t_reached)``: the interval covered by the dense output.
-
-    Calling the solution at times ``t`` (scalar or array) in ``span`` returns
-    complex ``(hinges, velocities)`` from the solver's dense output.
-    """
-
-    t: NDArray
-    hinges: NDArray
-    velocities: NDArray
-    energy: NDArray
-    constraint_residual: NDArray
-    nfev: int
-    success: bool
-    message: str
-    span: tuple[float, float]
-    _dense: _DenseOutput = field(repr=False)
-
-    def __call__(self, t: ArrayLike) -> tuple[NDArray, NDArray]:
-        """``(hinges, velocities)`` at ``t``: shape ``(n-1,)`` for scalar ``t``, else ``(*t.shape, n-1)``."""
-        t = np.asarray(t, dtype=float)
-        lo, hi = sorted(self.span)
-        bad = ~((t >= lo) & (t <= hi))  # also catches NaN
-        if np.any(bad):
-            raise ValueError(
-                f"t = {t[bad] if t.ndim else t} lies outside the integrated span "
-                f"[{self.span[0]:g}, {self.span[1]:g}]"
-            )
-        h, v = np.split(to_complex(self._dense(t.ravel())), 2, axis=-1)
-        return h.reshape(*t.shape, -1), v.reshape(*t.shape, -1)
-
-
-def _check_time(name: str, value: float, positive: bool = False) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real number, got {value!r}") from None
-    if not math.isfinite(value) or (positive and value <= 0):
-        raise ValueError(f"{name} must be finite{' and > 0' if positive else ''}, got {value!r}")
-    return value
+def _energy(v: NDArray, K: NDArray) -> NDArray:
+    """Kinetic energy ``1/2 v^T K v`` of real hinge velocities ``(..., 2(n-1))``."""
+    return 0.5 * np.einsum("...i,ij,...j->...", v, K, v)
 
 
 def _segment_bounds(t_final: float, interval: float | None) -> NDArray:
@@ -207,25 +70,41 @@ def _segment_bounds(t_final: float, interval: float | None) -> NDArray:
 
 def start_state(
     chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, tangent_tol: float, project_velocity: bool
-) -> tuple["_ConstrainedSystem", NDArray, NDArray, float]:
-    """Validate a hinge-space start; return the constraint system, real ``x0``, ``v0`` and ``t_final``.
+) -> tuple[HingeConstraints, NDArray, NDArray, float]:
+    """Validate the start of a hinge-space integration (shared by every hinge-space method).
 
-    ``hinges0`` must close (``ConfigurationError``), ``velocity0`` be finite and
-    tangent (``max_k |(G v)_k| <= tangent_tol * max(1, |v|)``) unless
-    ``project_velocity``, which projects it K-orthogonally; ``t_final`` finite, nonzero.
+    Parameters
+    ----------
+    chain
+        The chain.
+    hinges0
+        Complex initial hinges; must close to ``1e-9`` (else ``ConfigurationError``).
+    velocity0
+        Complex initial hinge velocities, ``n - 1`` finite entries, tangent:
+        ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)`` (else ``ValueError``)
+        unless ``project_velocity``.
+    t_final
+        End time, finite and nonzero (:func:`manifold.validation.check_real`).
+    tangent_tol
+        Relative tolerance of the tangency check, ``> 0``.
+    project_velocity
+        Replace a non-tangent ``velocity0`` by its K-orthogonal projection
+        :meth:`HingeConstraints.project_velocity` instead of refusing it.
+
+    Returns
+    -------
+    tuple
+        ``(constraints, x0, v0, t_final)``: the chain's :class:`HingeConstraints`,
+        the real interleaved start position and velocity, and ``t_final`` as a float.
     """
     h0 = chain.check_configuration(hinges0, tol=1e-9)
-    v0 = np.asarray(velocity0)
+    v0 = chain.as_hinges(velocity0, "velocity0")
     if v0.shape != (chain.n - 1,):
         raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
-    if not np.all(np.isfinite(v0)):
-        raise ValueError(f"velocity0 must be finite, got {v0}")
-    t_final = _check_time("t_final", t_final)
-    if t_final == 0:
-        raise ValueError("t_final must be nonzero (the end time of the integration from t = 0)")
-    tangent_tol = _check_time("tangent_tol", tangent_tol, positive=True)
-    system = _ConstrainedSystem(chain)
-    x0, v0 = to_real(h0).astype(float), to_real(v0.astype(complex)).astype(float)
+    t_final = check_real("t_final", t_final, nonzero=True)
+    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
+    system = HingeConstraints(chain)
+    x0, v0 = to_real(h0).astype(float), to_real(v0).astype(float)
     residual = np.max(np.abs(system.jacobian(x0) @ v0))
     if residual > tangent_tol * max(1.0, np.linalg.norm(v0)):
         if not project_velocity:
@@ -252,7 +131,8 @@ def integrate_ambient(
     projection_interval: float = 0.1,
     tangent_tol: float = 1e-9,
     project_velocity: bool = False,
-) -> AmbientSolution:
+    throw: bool = True,
+) -> ChainMotion:
     """Integrate the free motion of ``chain`` in hinge space with rod constraints.
 
     Solves ``K x'' = G^T lambda`` with ``G x'' = -2 |e'|^2`` (see the module
@@ -280,7 +160,8 @@ def integrate_ambient(
         Finite, nonzero end time; negative integrates backward from ``t = 0``.
     t_eval
         Output times within ``[0, t_final]`` (evaluated from the dense output);
-        default: the solver's steps.
+        default: the solver's steps.  Recorded in ``motion.times``,
+        ``motion.hinges``, ``motion.velocities``.
     method, rtol, atol
         Passed to :func:`scipy.integrate.solve_ivp` (any of its methods).
     project
@@ -297,13 +178,20 @@ def integrate_ambient(
     project_velocity
         If true, project ``velocity0`` K-orthogonally onto the tangent space
         instead of refusing a non-tangent one.
+    throw
+        If true (default), a run that fails before ``t_final`` raises
+        :class:`~manifold.GeodesicIntegrationError` with the partial solution;
+        if false, it is returned with ``status`` saying why.
 
     Returns
     -------
-    AmbientSolution
+    ChainMotion
+        Complex-hinge view of a :class:`~manifold.GeodesicSolution` whose
+        segments are in hinge coordinates (``chart=None``): chart parameters
+        come on demand from the best chart of the atlas.
     """
     system, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
-    interval = _check_time("projection_interval", projection_interval, positive=True) if project else None
+    interval = check_real("projection_interval", projection_interval, positive=True) if project else None
 
     if t_eval is not None:
         t_eval = np.asarray(t_eval, dtype=float)
@@ -311,48 +199,46 @@ def integrate_ambient(
         if t_eval.ndim != 1 or not np.all((t_eval >= lo) & (t_eval <= hi)):
             raise ValueError(f"t_eval must be a 1-d array of times within [0, {t_final:g}], got {t_eval}")
 
+    m = system.ambient_dim
+
+    def rhs(t: float, y: NDArray) -> NDArray:
+        """``(x, v)' = (v, x'')`` with ``x''`` from :meth:`HingeConstraints.acceleration`."""
+        return np.concatenate([y[m:], system.acceleration(y[:m], y[m:])])
+
+    wall0 = time.perf_counter()
     bounds = _segment_bounds(t_final, interval)
     y = np.concatenate([x0, v0])
-    starts, interpolants, ts, ys = [], [], [], []
-    nfev, success, message, t_reached = 0, True, "", 0.0
+    solution = GeodesicSolution(chain.metric(), float, f"ambient-{method}", (0.0, t_final), {})
+    solution.energy_times.append(0.0)
+    solution.energies.append(_energy(v0, system.K))
+    times, states = [0.0], [y]
+    status, message = SolveStatus.SUCCESS, "reached t_final"
     for a, b in zip(bounds[:-1], bounds[1:]):
-        sol = solve_ivp(system.rhs, (a, b), y, method=method, rtol=rtol, atol=atol, dense_output=True)
-        nfev += sol.nfev
-        message = sol.message
-        if sol.t.size < 2:  # failed on its very first step
-            success = False
+        sol = solve_ivp(rhs, (a, b), y, method=method, rtol=rtol, atol=atol, dense_output=True)
+        if sol.t.size >= 2:
+            solution.segments.append(Segment(None, a, sol.t[-1], sol.t.size - 1, CallableDense(sol.sol, sol.t.size - 1, 2 * m)))
+            solution.energy_times.extend(sol.t[1:])
+            solution.energies.extend(_energy(sol.y[m:, 1:].T, system.K))
+            y = sol.y[:, -1]
+            if project:
+                y = system.project(y)
+            times.extend(sol.t[1:])
+            states.extend(sol.y[:, 1:-1].T)
+            states.append(y)
+        if not sol.success or sol.t.size < 2:
+            status, message = SolveStatus.STEPPER_FAILED, f"{method} failed at t = {sol.t[-1]}: {sol.message}"
             break
-        starts.append(a)
-        interpolants.append(sol.sol)
-        ts.append(sol.t[:-1])
-        ys.append(sol.y[:, :-1])
-        t_reached, y = sol.t[-1], sol.y[:, -1]
-        if not sol.success:
-            success = False
-            break
-        if project:
-            y = system.project(y)
-    if not interpolants:
-        raise RuntimeError(f"integration failed at t = 0: {message}")
-
-    dense_output = _DenseOutput(starts, interpolants, y, (0.0, float(t_reached)))
+    solution.final_state = (None, y[:m], y[m:])
     if t_eval is None:
-        t = np.append(np.concatenate(ts), t_reached)
-        states = np.vstack([np.concatenate(ys, axis=1).T, y])
+        solution.t_eval, recorded = np.array(times), np.array(states)
     else:  # after a failure, only the times reached
-        t = t_eval[(t_eval * np.sign(t_final)) <= abs(t_reached)]
-        states = dense_output(t)
-    hinges, velocities = np.split(to_complex(states), 2, axis=-1)
-    v = states[:, system.m :]
-    return AmbientSolution(
-        t=t,
-        hinges=hinges,
-        velocities=velocities,
-        energy=0.5 * np.einsum("ti,ij,tj->t", v, system.K, v),
-        constraint_residual=chain.closure_residual(hinges),
-        nfev=nfev,
-        success=success,
-        message=message,
-        span=dense_output.span,
-        _dense=dense_output,
-    )
+        t_reached = float(solution.t_reached)
+        solution.t_eval = t_eval[(t_eval * np.sign(t_final)) <= abs(t_reached)]
+        recorded = np.concatenate(solution(solution.t_eval), axis=-1) if solution.segments else np.empty((0, 2 * m))
+        recorded[solution.t_eval == t_reached] = y  # the end is the last (projected) state
+    solution.points, solution.velocities = recorded[:, :m], recorded[:, m:]
+    solution.status, solution.message = status, message
+    solution.stats = SolverStats(solution.n_steps, 0, 0, 0.0, 0.0, time.perf_counter() - wall0)
+    if status is not SolveStatus.SUCCESS and throw:
+        raise GeodesicIntegrationError(message, solution)
+    return ChainMotion(chain, solution)

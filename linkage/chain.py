@@ -99,7 +99,7 @@ class Chain:
 
     def kinetic_energy(self, velocity: ArrayLike) -> NDArray:
         """``T = 1/2 v^T K v`` for complex hinge velocities ``(..., n-1)``."""
-        v = to_real(self._hinge_array(velocity, "velocity"))
+        v = to_real(self.as_hinges(velocity, "velocity"))
         return 0.5 * np.einsum("...i,ij,...j->...", v, self.ambient_metric, v)
 
     # -- charts -------------------------------------------------------------------
@@ -112,25 +112,56 @@ class Chain:
         return InducedMetric(self.atlas() if atlas is None else atlas, self.ambient_metric)
 
     # -- configurations -----------------------------------------------------------
-    def _hinge_array(self, hinges: ArrayLike, what: str = "configuration") -> NDArray:
-        h = np.asarray(hinges)
+    def as_hinges(self, values: ArrayLike, what: str = "configuration") -> NDArray:
+        """Check complex hinge values (positions or velocities) and return them as complex128.
+
+        Hinge values are complex ``p_j = x_j + i y_j`` of the interior hinges
+        ``j = 1 .. n-1``; the interleaved real vector of the same hinges is
+        :meth:`to_point`.  Nothing is checked about closure (see
+        :meth:`check_configuration`).
+
+        Parameters
+        ----------
+        values
+            Array of complex dtype, shape ``(..., n-1)``, finite.
+        what
+            What ``values`` are (``"configuration"``, ``"velocity"``, ...), for the messages.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``values`` as a complex128 array of the same shape.
+
+        Raises
+        ------
+        ConfigurationError
+            If the last axis is not ``n - 1`` long, the dtype is not complex (a
+            real array is most likely an interleaved point: convert it with
+            :meth:`from_point`), or a value is not finite.
+        """
+        h = np.asarray(values)
         if h.ndim == 0 or h.shape[-1] != self.n - 1:
             raise ConfigurationError(f"a {what} has n - 1 = {self.n - 1} complex hinges, got shape {h.shape}")
+        if h.dtype.kind != "c":
+            raise ConfigurationError(
+                f"a {what} is expected as complex hinges p_j = x_j + i y_j, got an array of dtype {h.dtype} "
+                "(for an interleaved real point (x_1, y_1, ...) use Chain.from_point)"
+            )
         if not np.all(np.isfinite(h)):
             raise ConfigurationError(f"{what} must be finite, got {h}")
         return h.astype(complex)
 
     def rods(self, hinges: ArrayLike) -> NDArray:
         """Rod vectors ``e_1 .. e_n`` (complex, ``(..., n)``)."""
-        return rod_vectors(self._hinge_array(hinges), self.L)
+        return rod_vectors(self.as_hinges(hinges), self.L)
 
     def closure_residual(self, hinges: ArrayLike) -> NDArray:
         """``max_k | |e_k| - 1 |``: how far a configuration is from closing (0 if it does)."""
-        return closure_residual(self._hinge_array(hinges), self.L)
+        return closure_residual(self.as_hinges(hinges), self.L)
 
     def check_configuration(self, hinges: ArrayLike, tol: float = 1e-9) -> NDArray:
         """Return ``hinges`` as a complex array if it closes to ``tol``; raise otherwise."""
-        h = self._hinge_array(hinges)
+        h = self.as_hinges(hinges)
         res = closure_residual(h, self.L)
         if np.any(res > tol):
             raise ConfigurationError(

@@ -68,7 +68,7 @@ def run(n: int, L: float, T: float, precision: str, out: str, samples: int = 200
         "ambient_distance_10": float(distance[early].max()),
         "separation_rate": float(rate),
         "ambient_distance": float(distance.max()),
-        "ambient_energy_error": float(np.max(np.abs(ref.energy / ref.energy[0] - 1))),
+        "ambient_energy_error": float(np.max(np.abs(ref.energies / ref.energies[0] - 1))),
         "closure": float(chain.closure_residual(hinges).max()),
         "time_chart": t_chart,
         "time_ambient": t_ref,

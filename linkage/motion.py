@@ -1,12 +1,16 @@
 """Free motion of a chain: geodesics of its kinetic-energy metric through the atlas.
 
-Thin layer over :func:`manifold.geodesic_solver.solve_chart_exp_ode` that speaks
-in complex hinges instead of interleaved real points.
+:func:`free_motion` is a thin layer over :func:`manifold.solve_chart_exp_ode`;
+:class:`ChainMotion` shows any method's solution in complex hinges instead of
+interleaved real points.
 """
 
 from __future__ import annotations
 
+from functools import cached_property
 from typing import Any
+
+import numpy as np
 
 from numpy.typing import ArrayLike, NDArray
 
@@ -16,15 +20,19 @@ from .chain import Chain
 
 
 class ChainMotion:
-    """A solved free motion: the geodesic plus complex-hinge accessors.
+    """A solved free motion of a chain: any method's :class:`~manifold.GeodesicSolution`, in complex hinges.
+
+    ``motion(t)`` evaluates complex hinges and velocities at any times of the
+    dense output; ``times``, ``hinges``, ``velocities`` are the recorded
+    states (the ``t_eval`` grid if one was asked for, else every step).
 
     Attributes
     ----------
     chain
         The chain.
     solution
-        The underlying :class:`~manifold.geodesic_solver.GeodesicSolution`
-        (segments, switch log, energies, working-precision evaluation).
+        The underlying :class:`~manifold.GeodesicSolution` (status, stats,
+        segments, switch log, energies, working-precision evaluation).
     """
 
     def __init__(self, chain: Chain, solution: GeodesicSolution) -> None:
@@ -38,18 +46,61 @@ class ChainMotion:
         p, v = self.solution(t)
         return self.chain.from_point(p.astype(float)), self.chain.from_point(v.astype(float))
 
+    @cached_property
+    def _recorded(self) -> tuple[NDArray, NDArray, NDArray]:
+        sol = self.solution
+        if sol.t_eval is not None:
+            return sol.t_eval, sol.points.astype(float), sol.velocities.astype(float)
+        t = np.array([float(x) for x in sol.energy_times])
+        p, v = sol(t)
+        return t, p.astype(float), v.astype(float)
+
+    @property
+    def times(self) -> NDArray:
+        """Times of the recorded states: the ``t_eval`` grid, else every step."""
+        return self._recorded[0]
+
+    @property
+    def hinges(self) -> NDArray:
+        """Complex hinges at :attr:`times`, shape ``(len(times), n-1)``."""
+        return self.chain.from_point(self._recorded[1])
+
+    @property
+    def velocities(self) -> NDArray:
+        """Complex hinge velocities at :attr:`times`."""
+        return self.chain.from_point(self._recorded[2])
+
+    @property
+    def energies(self) -> NDArray:
+        """Kinetic energy ``1/2 v^T K v`` at :attr:`times` (float64)."""
+        return self.chain.kinetic_energy(self.velocities)
+
+    @property
+    def closure_residuals(self) -> NDArray:
+        """``max_k | |e_k| - 1 |`` at :attr:`times` (0 for an exact configuration)."""
+        return self.chain.closure_residual(self.hinges)
+
+    @property
+    def success(self) -> bool:
+        return self.solution.success
+
+    @property
+    def n_steps(self) -> int:
+        return self.solution.n_steps
+
     @property
     def n_switches(self) -> int:
         return self.solution.n_switches
 
     @property
     def relative_energy_error(self) -> float:
+        """``max |E(t) - E(0)| / E(0)`` over the solver's own energy record."""
         return self.solution.relative_energy_error
 
     @property
     def chart_ids(self) -> list:
         """Readable ids of the charts used, in order (a chart kept across an angle wrap counts once)."""
-        ids = [self.solution.metric.atlas.ids[s.chart] for s in self.solution.segments]
+        ids = [self.solution.metric.atlas.ids[s.chart] for s in self.solution.segments if s.chart is not None]
         return [c for k, c in enumerate(ids) if k == 0 or c != ids[k - 1]]
 
 
@@ -70,5 +121,5 @@ def free_motion(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final:
         (``fp_type``, ``tol``, ``q_out``, ``form``, ``project_velocity``, ``dense``, ...).
     """
     h0 = chain.check_configuration(hinges0)
-    v0 = chain._hinge_array(velocity0, "velocity")
+    v0 = chain.as_hinges(velocity0, "velocity")
     return ChainMotion(chain, solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0), t_final, **kwargs))

@@ -10,12 +10,12 @@ from .compiled import ChartNumerics, CompiledFamily, compiled
 from .family import ChartFamily
 from .geodesic_solver import solve_chart_exp_ode
 from .metric import InducedMetric
-from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
+from .solution import CallableDense, ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import ScipyStepper, Stepper, TaylorStepper
 from .symbolic import SymbolicChart
 
 __all__ = [
-    "Atlas", "Chart", "ChartDomainError", "ChartFamily", "ChartNumerics", "ChartSwitch", "CompiledFamily",
+    "Atlas", "CallableDense", "Chart", "ChartDomainError", "ChartFamily", "ChartNumerics", "ChartSwitch", "CompiledFamily",
     "GeodesicIntegrationError", "GeodesicSolution", "InducedMetric", "ScipyStepper", "Segment", "SolveStatus",
     "SolverStats", "Stepper", "SymbolicChart", "TaylorStepper", "compiled", "solve_chart_exp_ode",
 ]

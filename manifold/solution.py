@@ -233,7 +233,8 @@ class GeodesicSolution:
                              "(use t_eval=... to record a grid, or dense=True)")
         sign = 1.0 if t1 >= t0 else -1.0
         ends = sign * np.array([float(s.t_end) for s in self.segments])
-        return np.minimum(np.searchsorted(ends, sign * ts, side="left"), len(self.segments) - 1)
+        # a time on a boundary belongs to the later segment: its start is the state after a switch or projection
+        return np.minimum(np.searchsorted(ends, sign * ts, side="right"), len(self.segments) - 1)
 
     def _states(self, flat: NDArray) -> tuple[NDArray, NDArray]:
         """Segment index and dense state of each time in the 1-d ``flat``."""

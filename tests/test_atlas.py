@@ -5,8 +5,8 @@ import pytest
 from hypothesis import assume, given
 from hypothesis import strategies as st
 
+from benchmarks.baselines.seed_metric4 import metric4
 from charts import SuspensionAtlas, SuspensionChart
-from charts.seed_metric4 import metric4
 from linkage import Chain
 from manifold import Atlas, InducedMetric
 

@@ -72,6 +72,28 @@ def _random_parameters(n, seed):
     return np.append(rng.uniform(-1.5, 1.5, n - 3), rng.uniform(-np.pi, np.pi))
 
 
+def test_as_hinges_takes_complex_hinges_only():
+    chain = Chain(3, 2.0)
+    h = np.array([np.exp(1j * np.pi / 3), 1 + np.exp(1j * np.pi / 3)])
+    for values in (h, h.astype(np.complex64), list(h), np.stack([h, h])):
+        out = chain.as_hinges(values)
+        assert out.dtype == np.complex128 and out.shape == np.shape(values)
+        np.testing.assert_array_equal(out, np.asarray(values).astype(complex))
+    point = chain.to_point(h)  # the interleaved real form of the same hinges is refused, by name
+    assert point.dtype.kind == "f"
+    with pytest.raises(ConfigurationError, match="2 complex hinges"):
+        chain.as_hinges(point, "velocity")
+    for real in (h.real, h.real.astype(int), [1.0, 1.0]):
+        with pytest.raises(ConfigurationError, match=r"a velocity is expected as complex hinges.*dtype.*from_point"):
+            chain.as_hinges(real, "velocity")
+    with pytest.raises(ConfigurationError, match="^a configuration is expected as complex hinges"):
+        chain.closure_residual(h.real)
+    with pytest.raises(ConfigurationError, match="velocity must be finite"):
+        chain.as_hinges(h * np.inf, "velocity")
+    # to_point and from_point are inverse to each other on complex hinges
+    np.testing.assert_array_equal(chain.as_hinges(chain.from_point(point)), h)
+
+
 def test_closure_residual_measures_the_defect():
     chain = Chain(3, 2.0)
     h = np.array([np.exp(1j * np.pi / 3), 1 + np.exp(1j * np.pi / 3)])  # closes: rods 1, 1, 1
@@ -80,7 +102,7 @@ def test_closure_residual_measures_the_defect():
     with pytest.raises(ConfigurationError, match="does not close"):
         chain.check_configuration(h * 1.01)
     with pytest.raises(ConfigurationError, match="finite"):
-        chain.check_configuration([np.nan, 1.0])
+        chain.check_configuration([np.nan + 0j, 1.0 + 0j])
     with pytest.raises(ConfigurationError, match="2 complex hinges"):
         chain.check_configuration([1.0, 1.0, 1.0])
     with pytest.raises(ConfigurationError, match="do not close"):

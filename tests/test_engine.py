@@ -175,3 +175,26 @@ def test_concurrent_solves_equal_serial_ones():
         threaded = list(pool.map(run, starts))
     for (ps, ns), (pt, nt) in zip(serial, threaded):
         assert ns == nt and np.array_equal(ps, pt)
+
+
+def test_the_ambient_reference_returns_the_same_solution_type():
+    """Hinge-coordinate segments (chart None): points directly, chart parameters on demand from the atlas."""
+    from linkage.ambient import integrate_ambient
+
+    chain = Chain(5, 3.4)
+    h0, v0 = unit_speed_start(chain, [0.4, -0.2, 0.7], [1.0, 0.3, -0.5])
+    motion = integrate_ambient(chain, h0, v0, 3.0, project=True, projection_interval=0.5)
+    sol = motion.solution
+    assert isinstance(sol.relative_energy_error, float) and sol.success and sol.method == "ambient-DOP853"
+    assert all(s.chart is None for s in sol.segments) and len(sol.segments) == 6
+    ts = np.linspace(0, 3, 13)
+    p, v = sol(ts)
+    charts, a, c = sol.parameters(ts)
+    for k in range(len(ts)):
+        chart = sol.metric.atlas.charts[charts[k]]
+        # DOP853's interpolant leaves the manifold by ~1e-11 between steps: the chart reads its nearest point
+        assert np.abs(chart.get_point(a[k]) - p[k]).max() <= 1e-10
+        assert np.abs(chart.tangent_vector(a[k], c[k]) - v[k]).max() <= 1e-10
+        assert charts[k] == sol.metric.atlas.get_chart_index(p[k])
+    ref = free_motion(chain, h0, v0, 3.0)
+    assert np.abs(motion(ts)[0] - ref(ts)[0]).max() <= 1e-9

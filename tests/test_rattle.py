@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
+from benchmarks.baselines.rattle import integrate_rattle
 from linkage import Chain, ConfigurationError
 from linkage.ambient import integrate_ambient
-from linkage.rattle import integrate_rattle
 
 from .conftest import unit_speed_start
 

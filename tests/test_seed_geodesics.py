@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from benchmarks.baselines.seed_geodesics import SEED_EPS, integrate_seed_rk4, seed_vector_field
 from charts import SuspensionChart
-from charts.seed_geodesics import SEED_EPS, integrate_seed_rk4, seed_vector_field
 from linkage import Chain
 from manifold import compiled, solve_chart_exp_ode
 

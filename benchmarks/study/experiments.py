@@ -45,7 +45,7 @@ def reference(chain: Chain, p0, v0, T: float, ts: np.ndarray, fp_type=hy.real128
     t0 = time.perf_counter()
     sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, fp_type=fp_type)
     name = repr(fp_type) if isinstance(fp_type, MultiPrecision) else np.dtype(fp_type).name
-    run = M._from_solution(f"reference ({name})", 0.0, chain, sol, time.perf_counter() - t0, ts)
+    run = M.from_solution(f"reference ({name})", 0.0, chain, sol, time.perf_counter() - t0, ts)
     run.energy_exact = sol.energies[0]
     return run
 

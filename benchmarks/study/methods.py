@@ -16,10 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from linkage import Chain
-from charts.seed_geodesics import integrate_seed_rk4
 from linkage.ambient import integrate_ambient
-from linkage.rattle import integrate_rattle
 from manifold import GeodesicIntegrationError, ScipyStepper, compiled, solve_chart_exp_ode
+
+from ..baselines.rattle import integrate_rattle
+from ..baselines.seed_geodesics import integrate_seed_rk4
 
 
 @dataclass
@@ -42,7 +43,10 @@ def _timed(fn: Callable):
     return out, time.perf_counter() - t0
 
 
-def _from_solution(name, knob, chain, sol, wall, ts, failed=None) -> Run:
+def from_solution(
+    name: str, knob: float, chain: Chain, sol, wall: float, ts: np.ndarray, failed: str | None = None
+) -> Run:
+    """A :class:`Run` from an atlas solution ``sol`` (real points), read at ``ts`` and converted to complex hinges."""
     ps, vs = sol(ts)
     h = chain.from_point(np.asarray(ps, dtype=float))
     v = chain.from_point(np.asarray(vs, dtype=float))
@@ -65,7 +69,7 @@ def atlas_taylor(chain: Chain, p0, v0, T, ts, tol) -> Run:
     """Method 1 (ours): heyoka Taylor in the atlas, event-located switches."""
     _warm_up(chain, tol)
     sol, wall = _timed(lambda: solve_chart_exp_ode(chain.metric(), p0, v0, T, tol=tol))
-    return _from_solution("atlas Taylor (ours)", tol, chain, sol, wall, ts)
+    return from_solution("atlas Taylor (ours)", tol, chain, sol, wall, ts)
 
 
 def single_chart_taylor(chain: Chain, p0, v0, T, ts, tol, chart: int = 0) -> Run:
@@ -83,7 +87,7 @@ def single_chart_taylor(chain: Chain, p0, v0, T, ts, tol, chart: int = 0) -> Run
         sol, failed = err.solution, str(err)
     wall = time.perf_counter() - t0
     reached = ts[ts <= float(sol.t_reached)]
-    return _finite_prefix(_from_solution(name, tol, chain, sol, wall, reached, failed))
+    return _finite_prefix(from_solution(name, tol, chain, sol, wall, reached, failed))
 
 
 def scipy_atlas(chain: Chain, p0, v0, T, ts, rtol, method: str = "DOP853") -> Run:
@@ -95,15 +99,16 @@ def scipy_atlas(chain: Chain, p0, v0, T, ts, rtol, method: str = "DOP853") -> Ru
         sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, stepper=ScipyStepper(method, rtol=rtol, atol=rtol))
     except RuntimeError as err:
         return Run(name, rtol, time.perf_counter() - t0, ts[:0], np.zeros((0, chain.n - 1)), np.zeros(0), str(err))
-    return _from_solution(name, rtol, chain, sol, time.perf_counter() - t0, ts)
+    return from_solution(name, rtol, chain, sol, time.perf_counter() - t0, ts)
 
 
 def ambient(chain: Chain, p0, v0, T, ts, rtol, project: bool = False) -> Run:
     """Method 4: hinge space with Lagrange multipliers (DOP853), optionally projected."""
     name = "ambient DOP853" + (" + projection" if project else "")
     sol, wall = _timed(lambda: integrate_ambient(chain, chain.from_point(p0), chain.from_point(v0), T, t_eval=ts,
-                                                  rtol=rtol, atol=rtol, project=project))
-    return Run(name, rtol, wall, ts, sol.hinges, sol.energy, None if sol.success else "solver failed", sol.nfev)
+                                                  rtol=rtol, atol=rtol, project=project, throw=False))
+    return Run(name, rtol, wall, sol.times, sol.hinges, sol.energies, None if sol.success else sol.solution.message,
+               sol.n_steps)
 
 
 def _finite_prefix(run: Run) -> Run:

@@ -2,7 +2,7 @@
 
 A faithful transcription, kept as a baseline to compare the library against:
 
-* the closed-form metric ``metric4(phi, t, L)`` of :mod:`charts.seed_metric4`
+* the closed-form metric ``metric4(phi, t, L)`` of :mod:`benchmarks.baselines.seed_metric4`
   (unit hinge masses, massless rods, identity rod order, coordinates
   ``a = (phi, t) = (phi_4, t)`` of ``SuspensionChart(4, L)``), with
   ``E = h_phiphi``, ``F = h_phit``, ``G = h_tt``;
@@ -53,9 +53,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .chain_geometry import validate_chain
+from charts import SuspensionChart, validate_chain
+from manifold.validation import check_real
+
 from .seed_metric4 import metric4
-from .suspension import SuspensionChart
 
 __all__ = ["SEED_EPS", "SeedSolution", "integrate_seed_rk4", "seed_vector_field"]
 
@@ -179,16 +180,6 @@ def _energy(a: NDArray, c: NDArray, L: float) -> float:
     return float(0.5 * c @ metric4(a[0], a[1], L) @ c)
 
 
-def _real(name: str, value: object, positive: bool = False) -> float:
-    try:
-        value = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real number, got {value!r}") from None
-    if not math.isfinite(value) or (positive and value <= 0):
-        raise ValueError(f"{name} must be finite{' and > 0' if positive else ''}, got {value!r}")
-    return value
-
-
 def integrate_seed_rk4(L: float, a0: ArrayLike, c0: ArrayLike, t_final: float, h: float) -> SeedSolution:
     """Integrate the seed's geodesic equations by fixed-step classical RK4 in one chart.
 
@@ -232,10 +223,8 @@ def integrate_seed_rk4(L: float, a0: ArrayLike, c0: ArrayLike, t_final: float, h
         raise ValueError(
             f"phi must lie strictly inside (-pi/2, pi/2) (the seed's chart is singular at its poles), got {a0[0]!r}"
         )
-    t_final = _real("t_final", t_final)
-    if t_final == 0:
-        raise ValueError("t_final must be nonzero (the end time of the integration from t = 0)")
-    h = _real("h", h, positive=True)
+    t_final = check_real("t_final", t_final, nonzero=True)
+    h = check_real("h", h, positive=True)
 
     T = abs(t_final)
     n = max(1, math.ceil(T / h - 1e-9))

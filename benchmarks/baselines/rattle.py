@@ -8,7 +8,7 @@ The chain moves in hinge space ``R^(2(n-1))`` (interleaved real hinge vector
 
     c_k(x) = |e_k|^2 - 1 = 0, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1},
 
-with Jacobian ``G = dc/dx`` (``n x 2(n-1)``); see :mod:`linkage.ambient`.
+with Jacobian ``G = dc/dx`` (``n x 2(n-1)``); see :mod:`linkage.constraints`.
 With no potential, one RATTLE step of size ``h`` (Andersen 1983; Leimkuhler &
 Skeel 1994) from ``(x, v)`` is
 
@@ -27,7 +27,9 @@ The position equations are solved by Newton's method in the scaled unknown
 
 started from the previous step's ``s``.  The velocity equations have the closed
 form ``v_1 = v_{1/2} - K^{-1} G_1^T (G_1 K^{-1} G_1^T)^{-1} G_1 v_{1/2}``
-(``G_1 = G(x_1)``): the K-orthogonal projection onto the tangent space.
+(``G_1 = G(x_1)``): the K-orthogonal projection onto the tangent space.  Both
+use :class:`linkage.constraints.HingeConstraints`, the second through its
+:meth:`~linkage.constraints.HingeConstraints.min_norm_correction`.
 
 Properties (of the exact map, up to the Newton tolerance and rounding): every
 step lands on the constraints ``c = 0`` with a tangent velocity; the map is
@@ -46,8 +48,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from charts.chain_geometry import to_complex
 
-from .ambient import _check_time, _ConstrainedSystem, start_state
-from .chain import Chain
+from linkage import Chain
+from linkage.ambient import start_state
+from linkage.constraints import HingeConstraints
+from manifold.validation import check_real
 
 __all__ = ["RattleSolution", "integrate_rattle"]
 
@@ -107,7 +111,7 @@ def _step_sizes(t_final: float, h: float) -> NDArray:
 class _Rattle:
     """One chain's RATTLE map (all real, interleaved)."""
 
-    def __init__(self, system: _ConstrainedSystem, tol: float, max_iter: int) -> None:
+    def __init__(self, system: HingeConstraints, tol: float, max_iter: int) -> None:
         self.sys, self.tol, self.max_iter = system, tol, max_iter
 
     def step(self, x: NDArray, v: NDArray, G0: NDArray, s: NDArray, h: float, where: str):
@@ -144,7 +148,7 @@ class _Rattle:
             it += 1
         v_half = v - d / h  # = (x1 - x) / h, without its cancellation
         G1 = sys.jacobian(x1)
-        v1 = v_half - sys._correction(G1, G1 @ v_half)
+        v1 = v_half - sys.min_norm_correction(G1, G1 @ v_half)
         return x1, v1, G1, s, it
 
 
@@ -214,10 +218,10 @@ def integrate_rattle(
     RuntimeError
         Newton's method failed to put a step on the constraints.
     """
-    h = _check_time("h", h, positive=True)
+    h = check_real("h", h, positive=True)
     if isinstance(record_every, bool) or not isinstance(record_every, (int, np.integer)) or record_every < 1:
         raise ValueError(f"record_every must be an integer >= 1, got {record_every!r}")
-    newton_tol = _check_time("newton_tol", newton_tol, positive=True)
+    newton_tol = check_real("newton_tol", newton_tol, positive=True)
     if isinstance(max_newton_iterations, bool) or not isinstance(max_newton_iterations, (int, np.integer)) \
             or max_newton_iterations < 1:
         raise ValueError(f"max_newton_iterations must be an integer >= 1, got {max_newton_iterations!r}")
@@ -228,8 +232,8 @@ def integrate_rattle(
     rec = [0] + list(range(record_every, n_steps, record_every)) + [n_steps]
     rec = sorted(set(rec))
     ts = np.empty(len(rec))
-    xs = np.empty((len(rec), system.m))
-    vs = np.empty((len(rec), system.m))
+    xs = np.empty((len(rec), system.ambient_dim))
+    vs = np.empty((len(rec), system.ambient_dim))
     ts[0], xs[0], vs[0] = 0.0, x, v
 
     rattle = _Rattle(system, newton_tol, int(max_newton_iterations))

@@ -1,0 +1,96 @@
+"""HingeConstraints: G is dc/dx, the correction is the K-smallest solution, projections land on c = 0, G v = 0."""
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+from scipy.linalg import null_space
+
+from charts import SuspensionChart
+from linkage import Chain
+from linkage.constraints import HingeConstraints
+
+
+@st.composite
+def systems(draw):
+    """``(constraints, x, rng)``: a chain with a random mass model and a closed configuration ``x``."""
+    n = draw(st.integers(3, 7))
+    L = draw(st.floats(n - 2 + 0.05, n - 0.05))
+    chain = Chain(
+        n,
+        L,
+        hinge_masses=draw(st.lists(st.floats(0.2, 5.0), min_size=n - 1, max_size=n - 1)),
+        rod_densities=draw(st.lists(st.floats(0.0, 3.0), min_size=n, max_size=n)),
+    )
+    a = [draw(st.floats(-1.4, 1.4)) for _ in range(n - 3)] + [draw(st.floats(-np.pi, np.pi))]
+    x = SuspensionChart(n, L).get_point(np.array(a))
+    return HingeConstraints(chain), x, np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+
+
+def k_orthogonal_to_tangent_space(sys: HingeConstraints, G: np.ndarray, d: np.ndarray) -> float:
+    """``max |w^T K d|`` over an orthonormal basis ``w`` of ``ker G``, relative to ``|K d|``."""
+    W = null_space(G)
+    return float(np.max(np.abs(W.T @ sys.K @ d), initial=0.0) / max(np.linalg.norm(sys.K @ d), 1e-300))
+
+
+@given(systems())
+def test_configurations_satisfy_the_constraints(case):
+    sys, x, _ = case
+    assert np.max(np.abs(sys.constraints(x))) < 1e-13
+
+
+@given(systems(), st.floats(0.0, 0.3))
+def test_jacobian_is_the_derivative_of_the_constraints(case, spread):
+    """Central differences are exact for the quadratic ``c`` up to rounding, at any ``x``."""
+    sys, x, rng = case
+    x = x + spread * rng.normal(size=x.size)  # off the configuration space too
+    eps = 1e-6
+    fd = np.column_stack([(sys.constraints(x + eps * e) - sys.constraints(x - eps * e)) / (2 * eps)
+                          for e in np.eye(x.size)])
+    G = sys.jacobian(x)
+    assert G.shape == (sys.n, 2 * (sys.n - 1)) == (sys.n, sys.ambient_dim)
+    assert np.max(np.abs(G - fd)) < 1e-8 * max(1.0, np.max(np.abs(G)))
+
+
+@given(systems())
+def test_min_norm_correction_solves_and_is_k_orthogonal_to_the_tangent_space(case):
+    sys, x, rng = case
+    G = sys.jacobian(x)
+    r = rng.normal(size=sys.n)
+    d = sys.min_norm_correction(G, r)
+    np.testing.assert_allclose(G @ d, r, rtol=0, atol=1e-10 * np.max(np.abs(r)))
+    assert k_orthogonal_to_tangent_space(sys, G, d) < 1e-10
+    # the K-smallest: adding any tangent vector w increases d^T K d
+    w = null_space(G) @ rng.normal(size=sys.ambient_dim - sys.n)
+    assert (d + w) @ sys.K @ (d + w) >= d @ sys.K @ d
+
+
+@given(systems())
+def test_acceleration_keeps_the_constraints_to_second_order(case):
+    """Along ``x(t) = x + t v + t^2/2 a`` with tangent ``v``: ``c'' = G a + 2 |e'|^2 = 0``."""
+    sys, x, rng = case
+    v = sys.project_velocity(x, rng.normal(size=sys.ambient_dim))
+    a = sys.acceleration(x, v)
+    tau = 1e-2
+    c = [sys.constraints(x + t * v + 0.5 * t * t * a) for t in tau * np.arange(-2, 3)]
+    # c(x(t)) is a quartic in t, for which this five-point stencil is exact (up to rounding)
+    c_second = (-c[0] + 16 * c[1] - 30 * c[2] + 16 * c[3] - c[4]) / (12 * tau**2)
+    scale = np.linalg.norm(v) ** 2 + 1.0
+    assert np.max(np.abs(c_second)) < 1e-9 * scale
+    assert k_orthogonal_to_tangent_space(sys, sys.jacobian(x), a) < 1e-10  # a constraint force: K a = G^T lambda
+
+
+@given(systems(), st.floats(1e-6, 1e-2))
+def test_projections_land_on_the_constraints_and_the_tangent_space(case, spread):
+    sys, x, rng = case
+    x_off = x + spread * rng.normal(size=x.size)
+    v_off = rng.normal(size=x.size)
+    y = sys.project(np.concatenate([x_off, v_off]))
+    xp, vp = y[: sys.ambient_dim], y[sys.ambient_dim :]
+    assert np.max(np.abs(sys.constraints(xp))) < 1e-14
+    G = sys.jacobian(xp)
+    assert np.max(np.abs(G @ vp)) < 1e-12 * max(1.0, np.linalg.norm(v_off))
+    # the velocity projection is K-orthogonal (the removed part is a constraint force) and idempotent
+    assert k_orthogonal_to_tangent_space(sys, G, v_off - vp) < 1e-10
+    np.testing.assert_allclose(sys.project_velocity(xp, vp), vp, rtol=0, atol=1e-14 * np.linalg.norm(v_off))
+    # a point on the constraints stays there (to rounding)
+    np.testing.assert_allclose(sys.project_position(xp), xp, rtol=0, atol=1e-14)
