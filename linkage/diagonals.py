@@ -40,6 +40,8 @@ from .lengths import validate_lengths
 # Points of D may lie this far (times the perimeter) outside a wall, as rounding
 # of a point computed on the wall leaves them; their slacks are clipped to 0.
 WALL_RTOL = 16 * np.finfo(float).eps
+# |sin gamma_k| (per rod) below which :func:`diagonals` calls a fan triangle flat.
+FLAT_SIN = 8 * np.finfo(float).eps
 # Closure tolerance (times the perimeter) accepted by :func:`diagonals`.
 CLOSURE_RTOL = 1e-9
 
@@ -101,7 +103,7 @@ def _check_x(lengths: NDArray, L: float, x: ArrayLike) -> NDArray:
         raise ValueError(f"x holds the n - 2 = {n - 2} free diagonals (d_2..d_{n-1}) on its last axis, got shape {xs.shape}")
     if not np.all(np.isfinite(xs)):
         idx = tuple(int(i) for i in np.argwhere(~np.isfinite(xs))[0])
-        raise ValueError(f"x must be finite, got x[{idx}] = {xs[idx]!r}")
+        raise ValueError(f"x must be finite, got x[{idx}] = {xs[idx].item()!r}")
     return xs
 
 
@@ -129,7 +131,7 @@ def _check_flips(n: int, flips: ArrayLike) -> NDArray:
     ok = (f == 1) | (f == -1)
     if not np.all(ok):
         idx = tuple(int(i) for i in np.argwhere(~ok)[0])
-        raise ValueError(f"flips must be +1 or -1, got flips[{idx}] = {f[idx]!r}")
+        raise ValueError(f"flips must be +1 or -1, got flips[{idx}] = {f[idx].item()!r}")
     return f.astype(int)
 
 
@@ -176,7 +178,9 @@ def diagonals(lengths: ArrayLike, L: float, hinges: ArrayLike) -> tuple[NDArray,
     """``(x, flips)`` of closed configurations: ``x = (|p_2|, ..., |p_{n-1}|)``, ``sigma_k = sign Im(conj(p_{k-1}) p_k)``.
 
     ``hinges`` is complex ``(..., n-1)`` and must close to ``CLOSURE_RTOL * P``
-    (``ValueError`` otherwise).  A flat triangle (``Im = 0``) gets ``sigma_k = +1``.
+    (``ValueError`` otherwise).  A flat triangle gets ``sigma_k = +1``; flat means
+    ``|sin gamma_k| <= FLAT_SIN * n``, so flips are recovered wherever the
+    triangle's slacks exceed about ``(FLAT_SIN * n)^2 * d``, i.e. ``1e-28``.
     """
     ls, L = validate_lengths(lengths, L)
     n = ls.size
@@ -193,7 +197,10 @@ def diagonals(lengths: ArrayLike, L: float, hinges: ArrayLike) -> tuple[NDArray,
         )
     p = np.concatenate([h, np.full((*h.shape[:-1], 1), L, dtype=complex)], axis=-1)
     cross = np.imag(np.conj(p[..., :-1]) * p[..., 1:])
-    return np.abs(h[..., 1:]), np.where(cross < 0, -1, 1)
+    # On a flat triangle the cross product is rounding noise of either sign:
+    # |sin gamma_k| <= FLAT_SIN counts as flat (there both flips agree to rounding).
+    flat = np.abs(cross) <= FLAT_SIN * n * np.abs(p[..., :-1]) * np.abs(p[..., 1:])
+    return np.abs(h[..., 1:]), np.where(flat | (cross > 0), 1, -1)
 
 
 def hinge_jacobian(lengths: ArrayLike, L: float, x: ArrayLike, flips: ArrayLike) -> NDArray:
@@ -387,8 +394,9 @@ class DiagonalSpace:
             invariant for any symmetric direction law; after ``steps // 3``
             isotropic steps the directions follow the ensemble covariance).
             Approximately uniform after ``steps`` steps (default
-            ``100 + 30 (n-2)^2``).  'auto': rejection if a pilot of 4096 cuboid
-            draws accepts at least 5%, hit-and-run otherwise.
+            ``40 + 15 (n-2)^2``, about five times what the moments need in the
+            tests).  'auto': rejection if a pilot of 4096 cuboid draws accepts
+            at least 5%, hit-and-run otherwise.
         measure
             'lebesgue': ``x`` uniform in ``D`` and ``flips`` uniform, i.e. the
             configurations have density ``1 / sqrt(det J^T J)`` with respect to
@@ -415,7 +423,7 @@ class DiagonalSpace:
         if method == "rejection":
             x, acceptance = self._rejection(M, rng, max_draws)
         else:
-            x = self._hit_and_run(M, rng, 100 + 30 * self.dim**2 if steps is None else int(steps))
+            x = self._hit_and_run(M, rng, 40 + 15 * self.dim**2 if steps is None else int(steps))
         flips = rng.choice(np.array([-1, 1]), size=(M, self.n - 1))
         d, s = _checked_slacks(self.lengths, self.L, x)
         hinges = _hinges(self.lengths, d, s, flips)[0]
@@ -447,17 +455,21 @@ class DiagonalSpace:
         centre, radius = self.interior_point()
         if radius <= WALL_RTOL * (self.lengths.sum() + self.L):
             raise ValueError(f"the diagonal space of {self!r} has no interior; hit-and-run needs one")
-        x = np.tile(centre, (N, 1))
+        # Chains along the last axis: (dim, N) and (rows, N) arrays, so that the
+        # reductions over rows run across contiguous memory; einsum, not BLAS,
+        # for these skinny products (threads only contend on shared cores).
+        x = np.repeat(centre[:, None], N, axis=1)
         chol = np.eye(self.dim)
         for step in range(steps):
             if step == steps // 3:
-                chol = np.linalg.cholesky(np.cov(x, rowvar=False).reshape(self.dim, self.dim) + 1e-12 * np.eye(self.dim))
-            u = rng.standard_normal((N, self.dim)) @ chol.T
-            slack = np.maximum(self.b - x @ self.A.T, 0.0)
-            rate = u @ self.A.T  # d slack / dt = -rate
+                cov = np.atleast_2d(np.cov(x)) + 1e-12 * np.eye(self.dim)
+                chol = np.linalg.cholesky(cov)
+            u = np.einsum("ij,jn->in", chol, rng.standard_normal((self.dim, N)))
+            slack = np.maximum(self.b[:, None] - np.einsum("ij,jn->in", self.A, x), 0.0)
+            rate = np.einsum("ij,jn->in", self.A, u)  # d slack / dt = -rate
             with np.errstate(divide="ignore", invalid="ignore"):
                 t = slack / rate
-            t_hi = np.min(np.where(rate > 0, t, np.inf), axis=1)
-            t_lo = np.max(np.where(rate < 0, t, -np.inf), axis=1)
-            x = x + (t_lo + (t_hi - t_lo) * rng.random(N))[:, None] * u
-        return x
+            t_hi = np.where(rate > 0, t, np.inf).min(axis=0)
+            t_lo = np.where(rate < 0, t, -np.inf).max(axis=0)
+            x += (t_lo + (t_hi - t_lo) * rng.random(N)) * u
+        return x.T.copy()

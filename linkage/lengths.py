@@ -29,7 +29,7 @@ def validate_lengths(lengths: ArrayLike, L: object) -> tuple[NDArray, float]:
     bad = ~(np.isfinite(ls) & (ls > 0))
     if np.any(bad):
         k = int(np.argmax(bad))
-        raise ValueError(f"lengths must be finite and > 0, got lengths[{k}] = {ls[k]!r}")
+        raise ValueError(f"lengths must be finite and > 0, got lengths[{k}] = {float(ls[k])!r}")
     try:
         Lf = float(L)  # type: ignore[arg-type]
     except (TypeError, ValueError):
