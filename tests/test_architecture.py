@@ -27,3 +27,17 @@ def test_lower_layers_do_not_import_higher_ones(package):
     for f in files:
         bad = _imported_packages(f) & FORBIDDEN[package]
         assert not bad, f"{f.relative_to(ROOT)} imports {bad}"
+
+
+LENGTH_GENERIC = ("lengths.py", "topology.py", "diagonals.py")
+
+
+@pytest.mark.parametrize("name", LENGTH_GENERIC)
+def test_length_generic_core_has_no_plotting_and_no_private_imports(name):
+    """The mathematics the Chain class delegates to stays importable without matplotlib."""
+    path = ROOT / "linkage" / name
+    assert "matplotlib" not in _imported_packages(path)
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            private = [a.name for a in node.names if a.name.startswith("_")]
+            assert not private, f"{name} imports private names {private} from {node.module}"

@@ -243,11 +243,16 @@ def test_cuboid_by_hand():
     assert np.array_equal(space.lower, [2.0, 1.5]) and np.array_equal(space.upper, [4.0, 4.5])
 
 
-def test_interval_volume_by_hand():
+def test_volume_by_hand():
     for ls, L in [((0.5, 1.2, 1.0), 1.1), ((1, 1, 1), 1.5), ((2, 0.5, 1), 2.2)]:
         lo = max(abs(ls[0] - ls[1]), abs(L - ls[2]))
         hi = min(ls[0] + ls[1], L + ls[2])
         assert DiagonalSpace(ls, L).volume() == pytest.approx(hi - lo, rel=1e-14)
+    # four unit rods: area of { |d_2 - 1| <= d_3 <= d_2 + 1, |d_3 - L| <= 1 <= d_3 + L }, 0 <= d_2 <= 2
+    # L = 2.5: d_3 in [1.5, d_2 + 1] for d_2 in [0.5, 2]: 1.5^2 / 2
+    assert DiagonalSpace([1, 1, 1, 1], 2.5).volume() == pytest.approx(9 / 8, rel=1e-13)
+    # L = 1: d_3 in [|d_2 - 1|, min(d_2 + 1, 2)]: int_0^1 2 d_2 + int_1^2 (3 - d_2) = 1 + 3/2
+    assert DiagonalSpace([1, 1, 1, 1], 1.0).volume() == pytest.approx(5 / 2, rel=1e-13)
 
 
 @pytest.mark.parametrize(

@@ -19,6 +19,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from linkage.diagonal_demo import critical_bases, topology_table
 from linkage.diagonals import DiagonalSpace
 from linkage.topology import Topology, topology
 
@@ -227,3 +228,12 @@ def test_euler_characteristic_against_the_cell_decomposition(lengths, L):
 def test_hand_values_of_the_euler_characteristic():
     assert euler_characteristic_from_cells((1, 1, 1, 1), 1.0) == -6
     assert euler_characteristic_from_cells((1, 1, 1, 1, 1, 1), 4.5) == 2
+
+
+def test_worked_example_changes_only_at_critical_bases():
+    crit = critical_bases(EXAMPLE)
+    assert crit[0] == pytest.approx(0.2) and crit[-1] == pytest.approx(8.2)  # 1 + 2 - 1.5 - 2.5 + 1.2 .. the sum
+    for label, t in topology_table(EXAMPLE):  # generic exactly on the open intervals below the sum
+        assert t.generic == ("<" in label), label
+    assert topology(EXAMPLE, 8.2 - 1e-6).kind == "sphere" and topology(EXAMPLE, 6.2 + 1e-6).kind == "sphere"
+    assert topology(EXAMPLE, 6.2 - 1e-6).kind == "manifold"
