@@ -136,6 +136,17 @@ def _check_flips(n: int, flips: ArrayLike) -> NDArray:
 
 
 # -- the map and its inverse --------------------------------------------------------
+def _prepared(lengths: ArrayLike, L: float, x: ArrayLike, flips: ArrayLike) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Validated lengths, full diagonals, clipped slacks and flips, broadcast over the leading axes."""
+    ls, L = validate_lengths(lengths, L)
+    xs, fs = _check_x(ls, L, x), _check_flips(ls.size, flips)
+    lead = np.broadcast_shapes(xs.shape[:-1], fs.shape[:-1])
+    xs = np.broadcast_to(xs, (*lead, xs.shape[-1]))
+    fs = np.broadcast_to(fs, (*lead, fs.shape[-1]))
+    d, s = _checked_slacks(ls, L, xs)
+    return ls, d, s, fs
+
+
 def _hinges(lengths: NDArray, d: NDArray, s: NDArray, flips: NDArray) -> tuple[NDArray, NDArray]:
     """Hinges ``p_1..p_{n-1}`` and the fan rotations ``e^{i gamma_k}`` from checked inputs."""
     rot = fan_rotation(d[..., :-1], lengths[1:], d[..., 1:], s[..., 0], s[..., 1], s[..., 2])
@@ -165,12 +176,7 @@ def from_diagonals(lengths: ArrayLike, L: float, x: ArrayLike, flips: ArrayLike)
         ``phi_{k-1} = phi_k - sigma_k gamma_k``, ``p_{k-1} = d_{k-1} e^{i phi_{k-1}}``.
         Closure ``|p_k - p_{k-1}| = l_k`` holds by construction.
     """
-    ls, L = validate_lengths(lengths, L)
-    xs, fs = _check_x(ls, L, x), _check_flips(ls.size, flips)
-    lead = np.broadcast_shapes(xs.shape[:-1], fs.shape[:-1])
-    xs = np.broadcast_to(xs, (*lead, xs.shape[-1]))
-    fs = np.broadcast_to(fs, (*lead, fs.shape[-1]))
-    d, s = _checked_slacks(ls, L, xs)
+    ls, d, s, fs = _prepared(lengths, L, x, flips)
     return _hinges(ls, d, s, fs)[0]
 
 
@@ -198,7 +204,7 @@ def diagonals(lengths: ArrayLike, L: float, hinges: ArrayLike) -> tuple[NDArray,
     p = np.concatenate([h, np.full((*h.shape[:-1], 1), L, dtype=complex)], axis=-1)
     cross = np.imag(np.conj(p[..., :-1]) * p[..., 1:])
     # On a flat triangle the cross product is rounding noise of either sign:
-    # |sin gamma_k| <= FLAT_SIN counts as flat (there both flips agree to rounding).
+    # |sin gamma_k| <= FLAT_SIN * n counts as flat (there both flips agree to rounding).
     flat = np.abs(cross) <= FLAT_SIN * n * np.abs(p[..., :-1]) * np.abs(p[..., 1:])
     return np.abs(h[..., 1:]), np.where(flat | (cross > 0), 1, -1)
 
@@ -211,13 +217,8 @@ def hinge_jacobian(lengths: ArrayLike, L: float, x: ArrayLike, flips: ArrayLike)
     ``dgamma_k/dd_k = -(c^2 + l^2 - a^2) / (c Q)`` with ``Q = sqrt(u v w (a+c+l))``
     (four times the area).  Infinite on a wall (``Q = 0``): ``ValueError`` there.
     """
-    ls, L = validate_lengths(lengths, L)
+    ls, d, s, fs = _prepared(lengths, L, x, flips)
     n = ls.size
-    xs, fs = _check_x(ls, L, x), _check_flips(n, flips)
-    lead = np.broadcast_shapes(xs.shape[:-1], fs.shape[:-1])
-    xs = np.broadcast_to(xs, (*lead, n - 2))
-    fs = np.broadcast_to(fs, (*lead, n - 1))
-    d, s = _checked_slacks(ls, L, xs)
     Q = np.sqrt(s[..., 0] * s[..., 1] * s[..., 2] * (d[..., :-1] + d[..., 1:] + ls[1:]))
     if np.any(Q == 0):
         raise ValueError("hinge_jacobian is infinite on a wall of D (a flat fan triangle); x must be interior")
