@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 from pathlib import Path
 
 import numpy as np
@@ -125,7 +126,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{s!r}: mean x = {np.round(s.x.mean(axis=0), 4)}")
     if space.dim == 3:
         plot_diagonal_polytope(space, samples, args.out)
-        print(f"wrote {args.out}")
+        print(f"wrote {os.path.relpath(args.out)}")
 
 
 if __name__ == "__main__":
