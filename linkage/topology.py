@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .lengths import sides, validate_lengths
 
-MAX_RODS = 24
+MAX_RODS = 20
 KINDS = ("empty", "point", "sphere", "tori", "manifold", "singular")
 
 

@@ -73,6 +73,8 @@ def test_bad_input_is_named():
                              ([[1, 1]], 1, "1-D"), ([1, 1], 0, "L"), ([1, 1], np.inf, "L")]:
         with pytest.raises(ValueError, match=word.replace("[", r"\[")):
             topology(lengths, L)
+    with pytest.raises(ValueError, match="must be <= 20, got 21"):
+        topology([1.0] * 21, 20.5)
 
 
 # -- the rules against each other, over random lengths ----------------------------------
