@@ -34,7 +34,6 @@ from numpy.typing import ArrayLike, NDArray
 from .lengths import sides, validate_lengths
 
 MAX_RODS = 20
-KINDS = ("empty", "point", "sphere", "tori", "manifold", "singular")
 
 
 @dataclass(frozen=True)
@@ -101,8 +100,9 @@ class Topology:
         elif self.kind == "point":
             what = f"a single collinear point, rods {_signs(self.collinear[0])} along the base"
         elif self.kind == "singular":
-            confs = "; ".join(f"rods {_signs(e)} along the base" for e in self.collinear)
-            what = f"singular (not a manifold) at {len(self.collinear)} collinear configuration(s): {confs}"
+            confs = "; ".join(f"rods {_signs(e)} along the base" for e in self.collinear[:4])
+            more = f"; ... ({len(self.collinear) - 4} more)" if len(self.collinear) > 4 else ""
+            what = f"singular (not a manifold) at {len(self.collinear)} collinear configuration(s): {confs}{more}"
         else:
             if self.kind == "sphere":
                 shape = f"sphere S^{d}, dominant side {self.side_name(self.dominant_side)}"

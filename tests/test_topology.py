@@ -57,6 +57,7 @@ def test_named_cases():
     assert sing.kind == "singular" and not sing.generic and sing.betti is None
     assert set(sing.collinear) == {(1, 1, 1, -1), (1, 1, -1, 1), (1, -1, 1, 1), (-1, 1, 1, 1)}
     assert "(+, +, +, -)" in str(sing)
+    assert str(topology([1] * 6, 2)).endswith("... (11 more)")  # C(6, 2) = 15 listed as 4 + 11
     # Grashof four-bars: crank-rocker (three long sides) = two circles; a triangle = two points
     assert (topology([0.5, 1.2, 1.0], 1.1).kind, topology([0.5, 1.2, 1.0], 1.1).betti) == ("tori", (2, 2))
     assert topology([0.5, 1.2, 1.0], 1.1).long_sides == (1, 2, 3)
