@@ -437,7 +437,7 @@ class DiagonalSpace:
 
     def _rejection(self, N: int, rng: np.random.Generator, max_draws: int) -> tuple[NDArray, float]:
         kept, drawn, count = [], 0, 0
-        batch = max(1024, 2 * N)
+        batch = min(2**20, max(1024, 2 * N))  # 2^20 draws at a time bounds the memory
         while count < N:
             if drawn >= max_draws:
                 raise RuntimeError(
@@ -449,7 +449,7 @@ class DiagonalSpace:
             kept.append(ok)
             drawn, count = drawn + batch, count + ok.shape[0]
             rate = max(count, 1) / drawn
-            batch = int(min(max_draws, max(1024, 1.2 * (N - count) / rate)))
+            batch = int(min(2**20, max(1024, 1.2 * (N - count) / rate)))
         return np.concatenate(kept)[:N], count / drawn
 
     def _hit_and_run(self, N: int, rng: np.random.Generator, steps: int) -> NDArray:
