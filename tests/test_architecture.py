@@ -122,10 +122,18 @@ def _module_private_ok():
                      (10, "_hinge_array"), (15, "_base"), (15, "_foreign")]
 
 
-
 def test_import_linkage_loads_no_plotting_library():
     """``linkage.draw`` imports matplotlib inside its functions only (checked in a fresh interpreter)."""
     code = "import linkage, sys; assert not any(m.startswith('matplotlib') for m in sys.modules), 'matplotlib loaded'"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     run = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
+
+
+LENGTH_GENERIC = ("lengths.py", "topology.py", "diagonals.py")
+
+
+@pytest.mark.parametrize("name", LENGTH_GENERIC)
+def test_length_generic_core_has_no_plotting(name):
+    """The mathematics the Chain class delegates to stays importable without matplotlib."""
+    assert "matplotlib" not in _imported_packages(ROOT / "linkage" / name)

@@ -1,0 +1,44 @@
+"""Validation of a chain of arbitrary link lengths, shared by its topology and diagonals.
+
+A chain has rods of lengths ``l_1 .. l_n > 0``, pinned at ``p_0 = 0`` and
+``p_n = L > 0``.  Its closed polygon has the ``n + 1`` sides
+``(l_1, ..., l_n, L)``: index ``k - 1`` is rod ``l_k`` and index ``n`` is the base.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+
+def validate_lengths(lengths: ArrayLike, L: object) -> tuple[NDArray, float]:
+    """Check link lengths and base; return ``(lengths as float array, float(L))``.
+
+    Raises ``ValueError`` naming the argument, the bad value and the valid range:
+    ``lengths`` a 1-D sequence of at least two finite numbers ``> 0``, ``L`` a
+    finite number ``> 0``.
+    """
+    try:
+        ls = np.asarray(lengths, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"lengths must be a sequence of finite numbers > 0, got {lengths!r}") from None
+    if ls.ndim != 1 or ls.size < 2:
+        raise ValueError(f"lengths must be a 1-D sequence of at least 2 link lengths, got shape {ls.shape}")
+    bad = ~(np.isfinite(ls) & (ls > 0))
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise ValueError(f"lengths must be finite and > 0, got lengths[{k}] = {float(ls[k])!r}")
+    try:
+        Lf = float(L)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ValueError(f"L (base length) must be a finite number > 0, got {L!r}") from None
+    if not (math.isfinite(Lf) and Lf > 0):
+        raise ValueError(f"L (base length) must be a finite number > 0, got L = {L!r}")
+    return ls, Lf
+
+
+def sides(lengths: NDArray, L: float) -> NDArray:
+    """The ``n + 1`` sides ``(l_1, ..., l_n, L)`` of the closed polygon (base last, index ``n``)."""
+    return np.append(lengths, L)
