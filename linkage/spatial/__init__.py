@@ -1,0 +1,10 @@
+"""Spatial closed revolute linkages: dual quaternions, configuration curves, bonds.
+
+Follows Hegedüs, Schicho, Schröcker, "The Theory of Bonds: A New Method for the
+Analysis of Linkages".  Imports neither ``charts`` nor the planar chain model;
+matplotlib only inside the drawing functions.  See ``linkage/spatial/README.md``.
+"""
+
+from .dualquat import DualNumber, DualQuaternion
+
+__all__ = ["DualNumber", "DualQuaternion"]
