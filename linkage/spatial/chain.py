@@ -296,9 +296,11 @@ class RevoluteChain:
                     if _min_order(full) <= 0:
                         continue
                     dist = {}
-                    for i, j in self._pairs():
-                        f = self._product_series(place, axes, i, j)
-                        dist[(i, j)] = Fraction(f.quadratic_form().order(), 2) - _min_order(f)
+                    for i in range(1, self.n):
+                        f = self._product_series(place, axes, i, i)
+                        for j in range(i + 1, self.n + 1):  # F_ij = F_i,j-1 (t_j - h_j)
+                            f = f * self._product_series(place, axes, j - 1, j)
+                            dist[(i, j)] = Fraction(f.quadratic_form().order(), 2) - _min_order(f)
                     hits = sum(1 for num, den in place.joints if (num * num + den * den).order() > 0)
                     out.append(self._finish(place.joint_values(), place.t0, place.branch, dist, hits == 2, "mpmath-50"))
         return out

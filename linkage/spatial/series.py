@@ -29,7 +29,7 @@ __all__ = ["EXACT", "TERMS", "WORKING_DIGITS", "ZERO_THRESHOLD", "PrecisionExhau
 WORKING_DIGITS = 50
 ZERO_THRESHOLD = mpmath.mpf("1e-30")
 #: Terms kept by series that are not exact (square roots, reciprocals).
-TERMS = 24
+TERMS = 16
 #: Precision of exactly known series (polynomials): larger than any exponent met.
 EXACT = 10**6
 

@@ -1,0 +1,113 @@
+"""The traps of issue 11: 0/0 base points, bonds at branch points, bonds at infinity.
+
+The linkages are the paper's; the traps are planted by writing their printed
+configuration curves in other (birationally equivalent) forms, so the expected
+bonds and local distances are still the paper's eqs. (9), (14) and Example 3.
+"""
+
+from __future__ import annotations
+
+import cmath
+
+import numpy as np
+import pytest
+import sympy
+
+from linkage.spatial import ConfigurationCurve, RevoluteChain
+
+from .test_spatial_fourbar import (
+    BENNETT,
+    BENNETT_BONDS,
+    D_BENNETT_1,
+    D_BENNETT_2,
+    PLANAR,
+    PLANAR_BONDS,
+    assert_same_bond_set,
+    same_point,
+)
+
+I = 1j
+t, w = sympy.symbols("t w")
+
+# eq. (13), typed in from the paper
+G13 = t**4 - 8 * t**3 + 2 * t**2 + 56 * t - 47
+EQ13 = [(-(t**2) + 2 * t + 5 - w) / (2 * (t + 3)), (t**2 + 1 + w) / (4 * (2 - t)), (t**2 - 4 * t + 1 + w) / (4 * (t - 1)), t]
+
+
+def bennett_eq7(s):
+    """eq. (7) with the parameter ``t`` replaced by the expression ``s``."""
+    return [s - 1, s, s - 1, -s]
+
+
+def check_bennett(chain):
+    bonds = chain.bonds()
+    assert_same_bond_set([b.joints for b in bonds], BENNETT_BONDS)
+    for b in bonds:
+        expected = D_BENNETT_1 if abs(b.joints[0] ** 2 + 1) < 1e-12 else D_BENNETT_2
+        assert np.array_equal(2 * b.local_distances, expected), b
+    return bonds
+
+
+def test_base_point_of_eq_13_is_resolved_not_a_bond():
+    """At ``t = 2``, ``w = -5``, eq. (13) reads ``t_2 = 0/0``; the homogeneous pair ``(0, 0)``
+    would pass ``a^2 + c^2 = 0`` as a false bond.  The place gives the limit along the curve."""
+    curve = ConfigurationCurve.hyperelliptic(EQ13, G13)
+    assert np.isnan(curve(2.0, branch=-1)[1])  # naive evaluation: 0/0
+    assert any(abs(complex(c) - 2) < 1e-30 for c in curve.bond_candidates() if c != complex("inf"))
+    (place,) = [p for p in curve.places(2) if p.branch == -1]
+    limit = place.joint_values()[1]
+    # approach t = 2 along the branch w = -sqrt(g): eq. (13) evaluated by hand
+    for eps in (1e-6, -1e-6):
+        tt = 2 + eps
+        ww = -cmath.sqrt(tt**4 - 8 * tt**3 + 2 * tt**2 + 56 * tt - 47)
+        assert abs((tt**2 + 1 + ww) / (4 * (2 - tt)) - limit) < 1e-5
+    assert abs(limit**2 + 1) > 0.1  # the true t_2 is no bond coordinate
+    chain = RevoluteChain(PLANAR, curve=curve)
+    assert_same_bond_set([b.joints for b in chain.bonds()], PLANAR_BONDS)
+    assert all(abs(b.parameter - 2) > 1e-9 for b in chain.bonds())
+
+
+def test_bonds_at_branch_points():
+    """The Bennett curve on the conic ``w^2 = tau^2 + 1`` via ``t = tau + w`` (birational,
+    inverse ``tau = (t - 1/t)/2``): the bonds ``t = +-I`` sit at the branch points
+    ``tau = +-I``, where ``tau - tau0`` is not a local parameter (it would double every order)."""
+    tau = sympy.Symbol("tau")
+    curve = ConfigurationCurve.hyperelliptic(bennett_eq7(tau + w), tau**2 + 1, t=tau)
+    bonds = check_bennett(RevoluteChain(BENNETT, curve=curve))
+    at_branch = [b for b in bonds if b.branch == 0]
+    assert sorted(round(b.parameter.imag) for b in at_branch) == [-1, 1]
+    assert all(abs(b.parameter.real) < 1e-30 for b in at_branch)
+
+
+def test_bonds_at_parameter_infinity_and_a_base_point_at_a_branch_point():
+    """The Bennett curve on the circle ``w^2 = 1 - tau^2`` via stereographic projection
+    ``t = w / (1 + tau)``: as ``tau -> inf``, ``w/tau -> +-I``, so the bonds ``t = +-I`` lie
+    over ``tau = inf``.  At ``tau = -1`` the formula is 0/0 and a branch point at once; the
+    limit there is the home configuration ``t_k = inf``, not a bond."""
+    tau = sympy.Symbol("tau")
+    curve = ConfigurationCurve.hyperelliptic(bennett_eq7(w / (1 + tau)), 1 - tau**2, t=tau)
+    bonds = check_bennett(RevoluteChain(BENNETT, curve=curve))
+    assert sum(b.parameter == complex("inf") for b in bonds) == 2
+    (home,) = curve.places(-1)
+    assert all(z == complex("inf") for z in home.joint_values())
+
+
+def test_bennett_series_path_agrees_with_the_exact_path():
+    """The same linkage through the 50-digit series (hyperelliptic form) and exactly (rational form)."""
+    tau = sympy.Symbol("tau")
+    exact = RevoluteChain(BENNETT)
+    series = RevoluteChain(BENNETT, curve=ConfigurationCurve.hyperelliptic(bennett_eq7(tau + w), tau**2 + 1, t=tau))
+    assert {b.method for b in exact.bonds()} == {"exact"}
+    assert {b.method for b in series.bonds()} == {"mpmath-50"}
+    for b in exact.bonds():
+        (twin,) = [c for c in series.bonds() if same_point(c.joints, b.joints)]
+        assert np.array_equal(twin.local_distances, b.local_distances)
+
+
+def test_zero_threshold_is_documented_and_used():
+    from linkage.spatial import series
+
+    assert series.WORKING_DIGITS == 50 and series.ZERO_THRESHOLD == pytest.approx(1e-30)
+    s = series.Series.exact([series.ZERO_THRESHOLD / 10, 0, 1])
+    assert s.order() == 2  # below the threshold counts as zero
+    assert series.Series.exact([series.ZERO_THRESHOLD * 10, 0, 1]).order() == 0
