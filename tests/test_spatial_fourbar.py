@@ -85,17 +85,17 @@ def bond_at(chain, point):
     return b
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def bennett():
     return RevoluteChain(BENNETT)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def spherical():
     return RevoluteChain(SPHERICAL)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def planar():
     return RevoluteChain(PLANAR)
 

@@ -292,8 +292,7 @@ class RevoluteChain:
             axes = [h.map(to_mpc) for h in self.axes]
             for t0 in curve.bond_candidates():
                 for place in curve.places(t0):
-                    full = self._product_series(place, axes, 0, self.n)
-                    if _min_order(full) <= 0:
+                    if not self._vanishes_at(place, axes):
                         continue
                     dist = {}
                     for i in range(1, self.n):
@@ -304,6 +303,18 @@ class RevoluteChain:
                     hits = sum(1 for num, den in place.joints if (num * num + den * den).order() > 0)
                     out.append(self._finish(place.joint_values(), place.t0, place.branch, dist, hits == 2, "mpmath-50"))
         return out
+
+    def _vanishes_at(self, place: Place, axes) -> bool:
+        """``F_0n`` vanishes at the place: all coordinates have order >= 1.
+
+        Only the ``u^0`` coefficients matter, so the joints are truncated to ``O(u)``.
+        """
+        first = Place(place.t0, place.branch, tuple((a.truncated(1), b.truncated(1)) for a, b in place.joints))
+        try:
+            _min_order(self._product_series(first, axes, 0, self.n))
+        except PrecisionExhausted:
+            return True
+        return False
 
     @staticmethod
     def _product_series(place: Place, axes, i: int, j: int) -> DualQuaternion:

@@ -270,7 +270,7 @@ class ConfigurationCurve:
             if not orders:
                 raise PrecisionExhausted(f"joint coordinates vanish to all computed orders at t = {t0}")
             o = min(orders)
-            joints.append((num.shift(-o), den.shift(-o)))
+            joints.append(tuple(s.shift(-o).normalized() if _known_nonzero(s) else s.shift(-o) for s in (num, den)))
         value = t0 if t0 == INF else complex(t0)
         return Place(value, branch, tuple(joints))
 

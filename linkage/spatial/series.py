@@ -55,7 +55,8 @@ class Series:
 
     def __init__(self, coeffs: Sequence[Any], val: int, prec: int):
         # coefficients past the stored ones (and below prec) are exactly zero
-        self.coeffs = [mpmath.mpc(x) for x in list(coeffs)[: max(prec - val, 0)]]
+        mpc = mpmath.mpc
+        self.coeffs = [x if type(x) is mpc else mpc(x) for x in list(coeffs)[: max(prec - val, 0)]]
         self.val, self.prec = val, prec
 
     @classmethod
@@ -138,6 +139,15 @@ class Series:
             if abs(c) > tol:
                 return self.val + k
         raise PrecisionExhausted(f"no coefficient above {mpmath.nstr(tol, 3)} up to O(u^{min(self.prec, EXACT)})")
+
+    def normalized(self) -> Series:
+        """Leading coefficients below the zero threshold dropped: ``val`` becomes the order."""
+        o = self.order()
+        return Series(self.coeffs[o - self.val :], o, self.prec)
+
+    def truncated(self, prec: int) -> Series:
+        """The same series known only up to ``O(u^prec)``."""
+        return Series(self.coeffs, self.val, min(prec, self.prec))
 
     def shift(self, e: int) -> Series:
         """Multiply by ``u^e``."""
