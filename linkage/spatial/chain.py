@@ -269,10 +269,8 @@ class RevoluteChain:
         """
         if self._bonds is None:
             curve = self.configuration_curve()
-            if curve.is_rational and self.exact:
-                self._bonds = self._bonds_exact(curve)
-            else:
-                self._bonds = self._bonds_series(curve)
+            bonds = self._bonds_exact(curve) if curve.is_rational and self.exact else self._bonds_series(curve)
+            self._bonds = sorted(bonds, key=_bond_order)
         return list(self._bonds)
 
     def _pairs(self):
@@ -468,6 +466,13 @@ def connection_numbers(d: np.ndarray) -> dict:
             if k:
                 out[(i, j)] = int(k)
     return out
+
+
+def _bond_order(b: Bond) -> tuple:
+    """Sort key: the joints connected, then the joint values (a conjugate pair stays together)."""
+    finite = [complex(0) if z == INF else z for z in b.joints]
+    pair = [(z == INF, round(f.real, 9), abs(round(f.imag, 9))) for z, f in zip(b.joints, finite)]
+    return (sorted(b.connection_numbers.items()), pair, [round(f.imag, 9) for f in finite])
 
 
 def _min_order(h: DualQuaternion) -> int:

@@ -84,7 +84,8 @@ class Place:
             d = den.coefficient(0)
             n = num.coefficient(0)
             tol = mpmath.mpf("1e-30") * max(abs(n), abs(d), 1)
-            out.append(INF if abs(d) <= tol else complex(n / d))
+            # parts below the zero threshold relative to |t_k| are rounding noise: chop them
+            out.append(INF if abs(d) <= tol else complex(mpmath.chop(n / d, mpmath.mpf("1e-30") * max(1, abs(n / d)))))
         return tuple(out)
 
 
