@@ -278,3 +278,19 @@ def test_bad_arguments_are_named():
         RevoluteChain([BENNETT[0], BENNETT[0], *BENNETT[2:]])
     with pytest.raises(ValueError, match=r"i must be .* 1\.\.4"):
         RevoluteChain(BENNETT).coupling_map(0, 2)
+
+
+def test_numerical_configuration_point_from_the_home_pose(bennett):
+    """From the home pose t_k = inf, the solver follows the Bennett curve to t_4 = 2:
+    eq. (7) with the paper's t = -2 gives (-3, -2, -3, 2)."""
+    point = bennett.configuration_point(2.0)
+    assert np.allclose(np.real(point), [-3, -2, -3, 2], atol=1e-9)
+
+
+def test_numerical_configuration_point_refuses_a_rigid_chain():
+    axes = list(BENNETT)
+    axes[3] = line([R(2, 3), R(1, 3), R(2, 3)], [6, 4, -8])
+    with pytest.raises(ArithmeticError, match="no configuration"):
+        RevoluteChain(axes).configuration_point(2.0)
+    with pytest.raises(ValueError, match=r"joint must be .* 1\.\.4"):
+        RevoluteChain(BENNETT).configuration_point(2.0, joint=5)

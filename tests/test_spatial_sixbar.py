@@ -139,3 +139,14 @@ def test_theorem_23_diagram_gives_back_the_distances(name, request):
             side = set(range(i + 1, j + 1))  # joints h_{i+1} .. h_j lie between o_i and o_j
             crossing = sum(k for (r, s), k in conn.items() if (r in side) != (s in side))
             assert D[i - 1, j - 1] == crossing
+
+
+def test_numerical_configuration_points_lie_on_the_printed_curve(ex11):
+    """Solving the closure equations for t_1 = t (Gauss-Newton from a perturbed start) gives
+    the printed curve (t, (t^2-3t+1)/(2t-3), -t, t^2-5t+7, -t+1, -t+3)."""
+    for t in (-2.0, 0.3, 1.1, 2.5):
+        printed = (t, (t**2 - 3 * t + 1) / (2 * t - 3), -t, t**2 - 5 * t + 7, -t + 1, -t + 3)
+        point = ex11.configuration_point(t, joint=1, guess=[x + 0.05 for x in printed])
+        assert np.allclose(np.real(point), printed, rtol=1e-9, atol=1e-9)
+        p = ex11.closure([z.real for z in point])
+        assert max(abs(float(x)) for x in p.coefficients[1:]) <= 1e-9 * abs(float(p[0]))

@@ -182,8 +182,62 @@ class RevoluteChain:
             e = sympy.expand(e)
             if curve.g is not None:
                 e = sympy.rem(sympy.Poly(e, W), sympy.Poly(W**2 - curve.g.as_expr(), W)).as_expr()
-            if self.exact and sympy.simplify(e) != 0 or not self.exact and _max_abs_coeff(e) > 1e-8:
+            if self.exact and sympy.expand(e) != 0 or not self.exact and _max_abs_coeff(e) > 1e-8:
                 raise ValueError(f"curve does not satisfy the closure condition: coefficient {k} of the product is {e}")
+
+    def configuration_point(self, value: float, joint: int | None = None, guess: Sequence[float] | None = None) -> tuple:
+        """A real configuration with ``t_joint = value``, solved numerically (any ``n``).
+
+        Writes ``t_k = cot(phi_k / 2)`` and each joint as the unit rotation
+        ``cos(phi_k/2) - sin(phi_k/2) h_k`` (proportional to ``t_k - h_k``); closure
+        means the product is ``+-1``: its primal vector part and its dual part
+        vanish.  The other angles are found by ``scipy.optimize.least_squares``
+        from ``guess`` (joint values ``t_k``; default: the home pose ``t_k = inf``).
+
+        Parameters
+        ----------
+        value
+            The prescribed real joint value (``inf`` allowed).
+        joint
+            Which joint is prescribed, 1-based (default ``n``).
+        guess
+            Starting joint values ``t_1..t_n`` (only the free ones are used).
+
+        Raises
+        ------
+        ArithmeticError
+            If the solver ends with a closure residual above ``1e-10``.
+        """
+        from scipy.optimize import least_squares
+
+        joint = self.n if joint is None else joint
+        self._check_link(joint, "joint")
+        hs = [np.array([float(x) for x in h], dtype=float) for h in self.axes]
+        angle = _angle_of(value)
+        start = [_angle_of(x) for x in guess] if guess is not None else [0.0] * self.n
+        if guess is not None and len(guess) != self.n:
+            raise ValueError(f"guess must have n = {self.n} entries; got {len(guess)}")
+        free = [k for k in range(self.n) if k != joint - 1]
+
+        def product(phis):
+            r = DualQuaternion.scalar(1.0)
+            for phi, h in zip(phis, hs):
+                r = r * (np.cos(phi / 2) - DualQuaternion(np.sin(phi / 2) * h))
+            return r
+
+        def residual(x):
+            phis = np.empty(self.n)
+            phis[free], phis[joint - 1] = x, angle
+            r = product(phis)
+            return np.array([r[1], r[2], r[3], r[4], r[5], r[6], r[7]], dtype=float)
+
+        sol = least_squares(residual, np.array(start)[free], xtol=1e-15, ftol=1e-15, gtol=1e-15)
+        err = float(np.max(np.abs(residual(sol.x))))
+        if err > 1e-10:
+            raise ArithmeticError(f"no configuration with t_{joint} = {value} found near the guess (residual {err:.2e})")
+        phis = np.empty(self.n)
+        phis[free], phis[joint - 1] = sol.x, angle
+        return tuple(_cot_half(phi) for phi in phis)
 
     # configuration curve ----------------------------------------------------------
     def configuration_curve(self) -> ConfigurationCurve:
@@ -327,11 +381,9 @@ class RevoluteChain:
     # -- exact path (rational curve, rational axes)
     def _bonds_exact(self, curve: ConfigurationCurve) -> list[Bond]:
         n = self.n
-        a = [p for p in curve.a]
-        c = [p for p in curve.c]
+        a, c = list(curve.a), list(curve.c)
         e = [max(p.degree(), q.degree(), 0) for p, q in zip(a, c)]
         one = sympy.Poly(1, T, domain="QQ")
-        factors: dict = {}
         # F_ij as dual quaternions with polynomial coefficients, homogeneous degree sum e_k
         prods = {}
         for i in range(n):
@@ -342,10 +394,9 @@ class RevoluteChain:
         bond_poly = one
         for ak, ck in zip(a, c):
             bond_poly = bond_poly * (ak * ak + ck * ck)
-        for f, _ in bond_poly.factor_list()[1]:
-            factors[f] = None
+        factors = [f for f, _ in bond_poly.factor_list()[1]]
         out = []
-        for m in list(factors) + [None]:  # None: t = inf
+        for m in factors + [None]:  # None: t = inf
             full, deg = prods[(0, n)]
             if _exact_min_order(full, deg, m) <= 0:
                 continue
@@ -466,6 +517,17 @@ def connection_numbers(d: np.ndarray) -> dict:
             if k:
                 out[(i, j)] = int(k)
     return out
+
+
+def _angle_of(t: float) -> float:
+    """``phi`` with ``t = cot(phi/2)`` (``inf -> 0``)."""
+    t = float(np.real(t))
+    return 0.0 if np.isinf(t) else 2 * np.arctan2(1.0, t)
+
+
+def _cot_half(phi: float) -> complex:
+    s = np.sin(phi / 2)
+    return complex("inf") if s == 0 else complex(np.cos(phi / 2) / s)
 
 
 def _bond_order(b: Bond) -> tuple:
