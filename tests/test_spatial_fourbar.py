@@ -71,7 +71,13 @@ D_TOTAL_PLANAR = [[0, 2, 4, 2], [2, 0, 2, 4], [4, 2, 0, 2], [2, 4, 2, 0]]
 
 
 def same_point(a, b, tol=1e-12) -> bool:
-    return all(abs(complex(x) - complex(y)) <= tol * (1 + abs(complex(y))) for x, y in zip(a, b))
+    def same(x, y):
+        x, y = complex(x), complex(y)
+        if np.isinf(abs(x)) or np.isinf(abs(y)):
+            return np.isinf(abs(x)) and np.isinf(abs(y))
+        return abs(x - y) <= tol * (1 + abs(y))
+
+    return all(same(x, y) for x, y in zip(a, b))
 
 
 def assert_same_bond_set(found, expected):

@@ -111,3 +111,33 @@ def test_zero_threshold_is_documented_and_used():
     s = series.Series.exact([series.ZERO_THRESHOLD / 10, 0, 1])
     assert s.order() == 2  # below the threshold counts as zero
     assert series.Series.exact([series.ZERO_THRESHOLD * 10, 0, 1]).order() == 0
+
+
+def _shared_axis_chain(curve):
+    """Axes 1 and 3 on one line (``h3 = -h1``): with joints 2 and 4 at the identity the chain
+    still moves, ``(t - h1)(t - h3) = t^2 + 1`` is real.  On that component the bonds have
+    joint coordinates ``inf`` (Remark 13)."""
+    from .test_spatial_fourbar import line
+
+    h1 = line([0, 0, 1], [0, 0, 0])
+    return RevoluteChain([h1, line([1, 0, 0], [0, 0, 1]), -h1, line([0, 1, 0], [1, 0, 0])], curve=curve)
+
+
+# by hand from Definition 14 on the component (t, inf, t, inf): F_12 = F_34 = 1 and
+# F_13 = F_14 = F_23 = F_24 = t + h1 up to factors 1, with Q(t + h1) = t^2 + 1
+D_SHARED_AXIS = [[0, 0, 1, 1], [0, 0, 1, 1], [1, 1, 0, 0], [1, 1, 0, 0]]
+
+
+def test_bonds_with_joint_coordinates_at_infinity_exact_and_series():
+    inf = complex("inf")
+    # t_k = (a_k + b_k w) / c_k with c_2 = c_4 = 0: joints 2 and 4 at t = inf
+    rational = ConfigurationCurve([t, 1, t, 1], [0, 0, 0, 0], [1, 0, 1, 0])
+    tau = sympy.Symbol("t")  # the same curve on the conic w^2 = t^2 + 1, joint 1 = t + w
+    conic = ConfigurationCurve([tau, 1, tau, 1], [1, 0, 1, 0], [1, 0, 1, 0], g=tau**2 + 1)
+    for curve, method in ((rational, "exact"), (conic, "mpmath-50")):
+        bonds = _shared_axis_chain(curve).bonds()
+        assert_same_bond_set([b.joints for b in bonds], [(I, inf, I, inf), (-I, inf, -I, inf)])
+        for b in bonds:
+            assert b.method == method
+            assert np.array_equal(2 * b.local_distances, D_SHARED_AXIS)
+            assert b.connection_numbers == {(1, 3): 1}

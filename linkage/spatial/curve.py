@@ -263,10 +263,12 @@ class ConfigurationCurve:
     def _place(self, t0: Any, branch: int, tser: Series, wser: Series | None) -> Place:
         joints = []
         for a, b, c in zip(self.a, self.b, self.c):
-            num = polyval(_ascending(a), tser)
+            # an identically zero numerator or denominator is the exact zero series: a
+            # Horner zero would carry a spurious negative val at t = inf and cost precision
+            num = Series.exact([]) if a.is_zero else polyval(_ascending(a), tser)
             if wser is not None and not b.is_zero:
                 num = num + polyval(_ascending(b), tser) * wser
-            den = polyval(_ascending(c), tser)
+            den = Series.exact([]) if c.is_zero else polyval(_ascending(c), tser)
             orders = [s.order() for s in (num, den) if _known_nonzero(s)]
             if not orders:
                 raise PrecisionExhausted(f"joint coordinates vanish to all computed orders at t = {t0}")
