@@ -300,3 +300,16 @@ def test_numerical_configuration_point_refuses_a_rigid_chain():
         RevoluteChain(axes).configuration_point(2.0)
     with pytest.raises(ValueError, match=r"joint must be .* 1\.\.4"):
         RevoluteChain(BENNETT).configuration_point(2.0, joint=5)
+
+
+def test_coupling_map_takes_the_limit_where_f_14_vanishes(planar):
+    """Example 5: at the non-typical bond (-I, I, -I, I) the product F_14 vanishes; the coupling
+    map is its limit, and f_14 = f_41^-1 is proportional to conj(t_1 - h_1) = t_1 + h_1 = -I + h_1."""
+    curve = planar.configuration_curve()
+    (place,) = [p for p in curve.places(1j) if same_point(p.joint_values(), (-I, I, -I, I))]
+    got = planar.coupling_map(1, 4)(1j, branch=place.branch)
+    expected = DualQuaternion.scalar(-I) + PLANAR[0]
+    k = max(range(8), key=lambda m: abs(complex(expected[m])))
+    ratio = complex(got[k]) / complex(expected[k])
+    assert abs(ratio) > 1e-6
+    assert all(abs(complex(x) - ratio * complex(y)) < 1e-12 * abs(ratio) for x, y in zip(got, expected))

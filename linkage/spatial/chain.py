@@ -12,7 +12,7 @@ is the relative pose of link ``o_j`` with respect to ``o_i``.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -80,7 +80,8 @@ class Bond:
 
     def __repr__(self) -> str:
         js = ", ".join("inf" if z == INF else f"{z.real:+.6g}{z.imag:+.6g}I" for z in self.joints)
-        return f"Bond(({js}), {'typical' if self.typical else 'non-typical'}, connects {self.connection_numbers}, {self.method})"
+        kind = "typical" if self.typical else "non-typical"
+        return f"Bond(({js}), {kind}, connects {self.connection_numbers}, {self.method})"
 
 
 def _is_exact(x: Any) -> bool:
@@ -185,7 +186,9 @@ class RevoluteChain:
             if self.exact and sympy.expand(e) != 0 or not self.exact and _max_abs_coeff(e) > 1e-8:
                 raise ValueError(f"curve does not satisfy the closure condition: coefficient {k} of the product is {e}")
 
-    def configuration_point(self, value: float, joint: int | None = None, guess: Sequence[float] | None = None) -> tuple:
+    def configuration_point(
+        self, value: float, joint: int | None = None, guess: Sequence[float] | None = None
+    ) -> tuple:
         """A real configuration with ``t_joint = value``, solved numerically (any ``n``).
 
         Writes ``t_k = cot(phi_k / 2)`` and each joint as the unit rotation
@@ -234,7 +237,9 @@ class RevoluteChain:
         sol = least_squares(residual, np.array(start)[free], xtol=1e-15, ftol=1e-15, gtol=1e-15)
         err = float(np.max(np.abs(residual(sol.x))))
         if err > 1e-10:
-            raise ArithmeticError(f"no configuration with t_{joint} = {value} found near the guess (residual {err:.2e})")
+            raise ArithmeticError(
+                f"no configuration with t_{joint} = {value} found near the guess (residual {err:.2e})"
+            )
         phis = np.empty(self.n)
         phis[free], phis[joint - 1] = sol.x, angle
         return tuple(_cot_half(phi) for phi in phis)
@@ -405,7 +410,8 @@ class RevoluteChain:
                 f, deg = prods[(i, j)]
                 q = _exact_order(f.quadratic_form(), 2 * deg, m)
                 dist[(i, j)] = Fraction(q, 2) - _exact_min_order(f, deg, m)
-            hits = sum(1 for ak, ck in zip(a, c) if _exact_order(ak * ak + ck * ck, 2 * max(ak.degree(), ck.degree(), 0), m) > 0)
+            # joints with t_k^2 + 1 = 0 here: (a_k^2 + c_k^2) vanishes (homogeneous degree 2 e_k)
+            hits = sum(_exact_order(ak * ak + ck * ck, 2 * ek, m) > 0 for ak, ck, ek in zip(a, c, e))
             roots = [INF] if m is None else [complex(sympy.N(r, 30)) for r in m.all_roots()]
             for t0 in roots:
                 joints = curve.places(t0)[0].joint_values()
@@ -417,7 +423,7 @@ class RevoluteChain:
         """``D = sum_beta D_beta`` ([HSS] Theorem 19: ``d(i,j) = deg C_ij * deg f_ij``)."""
         return sum((b.local_distances for b in self.bonds()), np.zeros((self.n, self.n)))
 
-    def connections(self) -> dict:
+    def connections(self) -> dict[tuple[int, int], int]:
         """``{(i, j): number of lines}`` of the bond diagram, ``i < j`` 1-based.
 
         One line per unit of ``k_beta(i, j)`` per pair of conjugate bonds (the two
@@ -430,13 +436,15 @@ class RevoluteChain:
         out = {}
         for key, k in sorted(total.items()):
             if k % 2:
-                raise ArithmeticError(f"connection number sum {k} for joints {key} is odd: bonds are not in conjugate pairs")
+                raise ArithmeticError(
+                    f"connection number sum {k} for joints {key} is odd: bonds are not in conjugate pairs"
+                )
             if k:
                 out[key] = k // 2
         return out
 
     # coupling ---------------------------------------------------------------------
-    def coupling_map(self, i: int, j: int):
+    def coupling_map(self, i: int, j: int) -> Callable[..., DualQuaternion]:
         """The coupling map ``f_ij``: a function of a curve point returning ``F_ij`` (eq. 3).
 
         The returned function takes the curve parameter ``t`` and ``branch`` (sign
@@ -490,14 +498,14 @@ class RevoluteChain:
         if not isinstance(i, (int, np.integer)) or not 1 <= i <= self.n:
             raise ValueError(f"{name} must be a link/joint number in 1..{self.n}; got {i!r}")
 
-    def draw_bond_diagram(self, ax, **kwargs):
+    def draw_bond_diagram(self, ax: Any, **kwargs: Any) -> Any:
         """Draw the bond diagram on a matplotlib ``Axes`` (see :func:`linkage.spatial.draw.draw_bond_diagram`)."""
         from .draw import draw_bond_diagram
 
         return draw_bond_diagram(ax, self.n, self.connections(), **kwargs)
 
 
-def connection_numbers(d: np.ndarray) -> dict:
+def connection_numbers(d: np.ndarray) -> dict[tuple[int, int], int]:
     """``{(i, j): k(i, j)}``, nonzero entries, ``k(i,j) = d(i,j) + d(i-1,j-1) - d(i,j-1) - d(i-1,j)``.
 
     ``d`` is a (local or total) distance matrix, ``d[i-1, j-1] = d(i, j)``, indices mod n

@@ -163,7 +163,9 @@ class ConfigurationCurve:
             c_s.append(sympy.expand(d0**2 - d1**2 * g0))
         if sympy.Poly(g0, T).degree() < 1:
             # g was a square: the curve is rational (two components for the two signs)
-            raise ValueError(f"g = {g} is a perfect square: the curve is reducible, give its components as rational curves")
+            raise ValueError(
+                f"g = {g} is a perfect square: the curve is reducible, give its components as rational curves"
+            )
         return cls(a_s, b_s, c_s, g0)
 
     # evaluation --------------------------------------------------------------------

@@ -14,7 +14,9 @@ import numpy as np
 __all__ = ["draw_bond_diagram", "draw_linkage", "link_segments"]
 
 
-def draw_bond_diagram(ax, n: int, connections: dict, title: str | None = None, color: str = "C3"):
+def draw_bond_diagram(
+    ax: Any, n: int, connections: dict[tuple[int, int], int], title: str | None = None, color: str = "C3"
+) -> Any:
     """Draw a bond diagram ([HSS] Section 3.4) on ``ax``.
 
     The links ``o_1 .. o_n`` are the vertices of a regular polygon, the joint
@@ -77,7 +79,7 @@ def _common_normal_foot(p1, d1, p2, d2) -> np.ndarray:
     return p1 + s * d1
 
 
-def link_segments(chain, joints: Sequence[Any]) -> tuple[list, list]:
+def link_segments(chain: Any, joints: Sequence[Any]) -> tuple[list, list]:
     """Links and joint axes at a configuration, as 3-d segments in the frame of link ``o_n``.
 
     Link ``o_j`` carries the axes ``h_j`` and ``h_{j+1}``; it is drawn as the
@@ -117,7 +119,9 @@ def link_segments(chain, joints: Sequence[Any]) -> tuple[list, list]:
     return links, axes[-1:] + axes[:-1]
 
 
-def draw_linkage(ax, chain, joints: Sequence[Any], color: str = "C0", alpha: float = 1.0, axis_length: float = 1.0):
+def draw_linkage(
+    ax: Any, chain: Any, joints: Sequence[Any], color: str = "C0", alpha: float = 1.0, axis_length: float = 1.0
+) -> Any:
     """Draw links (thick), offsets along the axes (thick) and the axes (thin) on a 3-d ``Axes``."""
     links, axes = link_segments(chain, joints)
     n = chain.n
@@ -125,5 +129,6 @@ def draw_linkage(ax, chain, joints: Sequence[Any], color: str = "C0", alpha: flo
         nxt = links[(j + 1) % n][0]  # o_{j+1} starts on the axis where o_j ends
         ax.plot(*np.array([a, b, nxt]).T, "-", color=color, lw=3, alpha=alpha)
     for point, direction in axes:
-        ax.plot(*np.array([point - axis_length * direction, point + axis_length * direction]).T, "k-", lw=0.8, alpha=alpha)
+        ends = np.array([point - axis_length * direction, point + axis_length * direction])
+        ax.plot(*ends.T, "k-", lw=0.8, alpha=alpha)
     return ax

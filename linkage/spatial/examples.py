@@ -20,7 +20,8 @@ __all__ = ["bennett", "example_11", "example_12", "example_11_axes", "planar_fou
 
 def _line(primal, dual) -> DualQuaternion:
     """``primal`` and ``dual`` vector parts as printed in the paper (exact rationals)."""
-    return DualQuaternion([sympy.Integer(0), *map(sympy.Rational, primal), sympy.Integer(0), *map(sympy.Rational, dual)])
+    zero = sympy.Integer(0)
+    return DualQuaternion([zero, *map(sympy.Rational, primal), zero, *map(sympy.Rational, dual)])
 
 
 def bennett() -> RevoluteChain:
@@ -38,7 +39,8 @@ def bennett() -> RevoluteChain:
 def spherical_four_bar() -> RevoluteChain:
     """Example 2: ``h1 = i``, ``h2 = j``, ``h3 = k``, ``h4 = 3/5 i + 4/5 j``."""
     zero = [0, 0, 0]
-    return RevoluteChain([_line([1, 0, 0], zero), _line([0, 1, 0], zero), _line([0, 0, 1], zero), _line([R(3, 5), R(4, 5), 0], zero)])
+    directions = ([1, 0, 0], [0, 1, 0], [0, 0, 1], [R(3, 5), R(4, 5), 0])
+    return RevoluteChain([_line(d, zero) for d in directions])
 
 
 def planar_four_bar() -> RevoluteChain:

@@ -95,7 +95,8 @@ def bennett_animation(path: Path, frames: int = 48) -> None:
         ax.cla()
         draw_linkage(ax, chain, poses[k], axis_length=1.5)
         _frame_axes(ax, chain, poses)
-        ax.set_title(f"Bennett linkage, t4 = {poses[k][3].real:+.2f}" if np.isfinite(abs(poses[k][3])) else "Bennett linkage, t4 = inf")
+        t4 = poses[k][3]
+        ax.set_title(f"Bennett linkage, t4 = {t4.real:+.2f}" if np.isfinite(abs(t4)) else "Bennett linkage, t4 = inf")
 
     FuncAnimation(fig, update, frames=len(poses)).save(path, writer=PillowWriter(fps=12))
     plt.close(fig)
