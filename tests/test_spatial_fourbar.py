@@ -6,6 +6,8 @@ given), never taken from this code's output.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 import sympy
@@ -91,19 +93,25 @@ def bond_at(chain, point):
     return b
 
 
-@pytest.fixture(scope="session")
+@functools.lru_cache(maxsize=None)
+def example_chain(name: str) -> RevoluteChain:
+    """One chain per example for the whole session (bonds are cached on the chain)."""
+    return RevoluteChain({"bennett": BENNETT, "spherical": SPHERICAL, "planar": PLANAR}[name])
+
+
+@pytest.fixture
 def bennett():
-    return RevoluteChain(BENNETT)
+    return example_chain("bennett")
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture
 def spherical():
-    return RevoluteChain(SPHERICAL)
+    return example_chain("spherical")
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture
 def planar():
-    return RevoluteChain(PLANAR)
+    return example_chain("planar")
 
 
 def test_axes_are_unit_lines():
@@ -313,3 +321,25 @@ def test_coupling_map_takes_the_limit_where_f_14_vanishes(planar):
     ratio = complex(got[k]) / complex(expected[k])
     assert abs(ratio) > 1e-6
     assert all(abs(complex(x) - ratio * complex(y)) < 1e-12 * abs(ratio) for x, y in zip(got, expected))
+
+
+@pytest.mark.parametrize("name", ["spherical", "planar"])
+def test_exact_orders_on_the_hyperelliptic_examples_match_the_50_digit_series(name):
+    """Examples 2 and 3 have rational axes: their bonds lie over t0 in Q(I), so the orders are
+    exact (series over Q(I, t0, sqrt g(t0))); the forced 50-digit series must agree."""
+    chain = example_chain(name)
+    exact, series = chain.bonds(), chain.bonds(numeric=True)
+    assert {b.method for b in exact} == {"exact"} and {b.method for b in series} == {"mpmath-50"}
+    assert len(exact) == len(series)
+    for b in exact:
+        (twin,) = [c for c in series if same_point(c.joints, b.joints)]
+        assert np.array_equal(twin.local_distances, b.local_distances) and twin.typical == b.typical
+
+
+def test_spherical_bonds_at_4_5_plus_3_5_i_sit_at_branch_points():
+    """g = 25t^4 - 14t^2 + 25 vanishes at t = +-4/5 +- 3/5 I: the bonds with t_4 there are at
+    branch points of eq. (12), where t - t0 is not a local parameter."""
+    g = lambda z: 25 * z**4 - 14 * z**2 + 25  # noqa: E731
+    assert abs(g(0.8 + 0.6j)) < 1e-12
+    at_branch = [b for b in example_chain("spherical").bonds() if abs(abs(b.joints[3].real) - 0.8) < 1e-12]
+    assert len(at_branch) == 4 and all(b.branch == 0 for b in at_branch)

@@ -92,16 +92,25 @@ def test_bonds_at_parameter_infinity_and_a_base_point_at_a_branch_point():
     assert all(z == complex("inf") for z in home.joint_values())
 
 
-def test_bennett_series_path_agrees_with_the_exact_path():
-    """The same linkage through the 50-digit series (hyperelliptic form) and exactly (rational form)."""
+@pytest.mark.parametrize("form", ["rational", "conic", "circle"])
+def test_the_50_digit_series_agree_with_the_exact_orders(form):
+    """The Bennett linkage in the three forms above: exact orders (multiplicities over Q,
+    or series over Q(I, t0, sqrt)) and the forced 50-digit series give the same bonds."""
     tau = sympy.Symbol("tau")
-    exact = RevoluteChain(BENNETT)
-    series = RevoluteChain(BENNETT, curve=ConfigurationCurve.hyperelliptic(bennett_eq7(tau + w), tau**2 + 1, t=tau))
-    assert {b.method for b in exact.bonds()} == {"exact"}
-    assert {b.method for b in series.bonds()} == {"mpmath-50"}
-    for b in exact.bonds():
-        (twin,) = [c for c in series.bonds() if same_point(c.joints, b.joints)]
+    curves = {
+        "rational": None,
+        "conic": ConfigurationCurve.hyperelliptic(bennett_eq7(tau + w), tau**2 + 1, t=tau),
+        "circle": ConfigurationCurve.hyperelliptic(bennett_eq7(w / (1 + tau)), 1 - tau**2, t=tau),
+    }
+    chain = RevoluteChain(BENNETT, curve=curves[form])
+    exact, series = chain.bonds(), chain.bonds(numeric=True)
+    assert {b.method for b in exact} == {"exact"}
+    assert {b.method for b in series} == {"mpmath-50"}
+    assert len(exact) == len(series) == 4
+    for b in exact:
+        (twin,) = [c for c in series if same_point(c.joints, b.joints)]
         assert np.array_equal(twin.local_distances, b.local_distances)
+        assert twin.typical == b.typical
 
 
 def test_zero_threshold_is_documented_and_used():
@@ -134,8 +143,9 @@ def test_bonds_with_joint_coordinates_at_infinity_exact_and_series():
     rational = ConfigurationCurve([t, 1, t, 1], [0, 0, 0, 0], [1, 0, 1, 0])
     tau = sympy.Symbol("t")  # the same curve on the conic w^2 = t^2 + 1, joint 1 = t + w
     conic = ConfigurationCurve([tau, 1, tau, 1], [1, 0, 1, 0], [1, 0, 1, 0], g=tau**2 + 1)
-    for curve, method in ((rational, "exact"), (conic, "mpmath-50")):
-        bonds = _shared_axis_chain(curve).bonds()
+    for curve, numeric in ((rational, False), (rational, True), (conic, False), (conic, True)):
+        bonds = _shared_axis_chain(curve).bonds(numeric=numeric)
+        method = "mpmath-50" if numeric else "exact"
         assert_same_bond_set([b.joints for b in bonds], [(I, inf, I, inf), (-I, inf, -I, inf)])
         for b in bonds:
             assert b.method == method

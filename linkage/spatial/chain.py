@@ -150,7 +150,7 @@ class RevoluteChain:
                 raise ValueError(f"curve has {curve.n} joints, the chain {n}")
             self._check_closure_identically(curve)
             self._curve = curve
-        self._bonds: list[Bond] | None = None
+        self._bonds: dict[bool, list[Bond]] = {}
 
     def __repr__(self) -> str:
         return f"RevoluteChain(n={self.n}, {'exact' if self.exact else 'float'} axes)"
@@ -315,22 +315,35 @@ class RevoluteChain:
         return ConfigurationCurve.hyperelliptic(joints, g)
 
     # bonds ------------------------------------------------------------------------
-    def bonds(self) -> list[Bond]:
+    def bonds(self, numeric: bool = False) -> list[Bond]:
         """All bonds, with local distance matrices and connection numbers.
 
         Candidates are the places over the roots of ``t_k^2 + 1`` (all joints) and
         over ``t = inf``; a place is a bond when every coordinate of
         ``F_0n = prod (t_k - h_k)`` vanishes there (joint coordinates taken as limits
-        along the curve, so 0/0 base points do not count).  Rational curves with
-        exact axes are handled exactly (each irreducible factor over Q of
-        ``prod (a_k^2 + c_k^2)`` gives bonds sharing one local structure); otherwise
-        by series at 50 digits.
+        along the curve, so 0/0 base points do not count).
+
+        With exact (rational) axes the orders are exact: on a rational curve as
+        multiplicities of the irreducible factors over Q of ``prod (a_k^2 + c_k^2)``
+        (all roots of a factor share one local structure); on a hyperelliptic curve
+        by series over the number field ``Q(I, t0, sqrt(...))`` of the place, when
+        ``t0`` has degree at most ``EXACT_ROOT_DEGREE`` over Q.  Everything else uses
+        series at 50 digits with the documented zero threshold (``Bond.method``
+        says which).
+
+        Parameters
+        ----------
+        numeric
+            Force the 50-digit series everywhere (a cross-check of the exact results).
         """
-        if self._bonds is None:
+        if numeric not in self._bonds:
             curve = self.configuration_curve()
-            bonds = self._bonds_exact(curve) if curve.is_rational and self.exact else self._bonds_series(curve)
-            self._bonds = sorted(bonds, key=_bond_order)
-        return list(self._bonds)
+            if curve.is_rational and self.exact and not numeric:
+                bonds = self._bonds_exact(curve)
+            else:
+                bonds = self._bonds_series(curve, exact=self.exact and not numeric)
+            self._bonds[numeric] = sorted(bonds, key=_bond_order)
+        return list(self._bonds[numeric])
 
     def _pairs(self):
         return [(i, j) for i in range(1, self.n + 1) for j in range(i + 1, self.n + 1)]
@@ -343,14 +356,24 @@ class RevoluteChain:
         return Bond(tuple(joints), t0, branch, d, connection_numbers(d), typical, method)
 
     # -- series path
-    def _bonds_series(self, curve: ConfigurationCurve) -> list[Bond]:
+    def _bonds_series(self, curve: ConfigurationCurve, exact: bool) -> list[Bond]:
+        """Bonds found on 50-digit places, then re-analysed exactly where a cheap exact field exists."""
         out = []
         with mpmath.workdps(WORKING_DIGITS):
-            axes = [h.map(to_mpc) for h in self.axes]
-            for t0 in curve.bond_candidates():
+            numeric_axes = [h.map(to_mpc) for h in self.axes]
+            for t0, factor in curve.bond_candidate_factors():
                 for place in curve.places(t0):
-                    if not self._vanishes_at(place, axes):
+                    if not self._vanishes_at(place, numeric_axes):
                         continue
+                    exact_place = curve.exact_place(place, factor) if exact else None
+                    if exact_place is not None:
+                        place = exact_place
+                        field = place.joints[0][1].field
+                        axes = [h.map(field.convert) for h in self.axes]
+                        if not self._vanishes_at(place, axes):
+                            continue
+                    else:
+                        axes = numeric_axes
                     dist = {}
                     for i in range(1, self.n):
                         f = self._product_series(place, axes, i, i)
@@ -358,7 +381,8 @@ class RevoluteChain:
                             f = f * self._product_series(place, axes, j - 1, j)
                             dist[(i, j)] = Fraction(f.quadratic_form().order(), 2) - _min_order(f)
                     hits = sum(1 for num, den in place.joints if (num * num + den * den).order() > 0)
-                    out.append(self._finish(place.joint_values(), place.t0, place.branch, dist, hits == 2, "mpmath-50"))
+                    method = "exact" if place.exact else "mpmath-50"
+                    out.append(self._finish(place.joint_values(), place.t0, place.branch, dist, hits == 2, method))
         return out
 
     def _vanishes_at(self, place: Place, axes) -> bool:
@@ -376,8 +400,9 @@ class RevoluteChain:
     @staticmethod
     def _product_series(place: Place, axes, i: int, j: int) -> DualQuaternion:
         """``F_ij`` at a place: ``prod_{k=i+1..j} (num_k - den_k h_k)`` (1-based joints)."""
-        zero = Series.exact([0])
-        r = DualQuaternion.scalar(Series.exact([1]), zero)
+        field = place.joints[0][1].field
+        zero = Series.exact([], 0, field)
+        r = DualQuaternion.scalar(Series.exact([1], 0, field), zero)
         for k in range(i, j):
             num, den = place.joints[k]
             r = r * (DualQuaternion.scalar(num, zero) - axes[k] * den)

@@ -31,30 +31,31 @@ from typing import Any
 import mpmath
 import sympy
 
-from .series import TERMS, WORKING_DIGITS, PrecisionExhausted, Series, polyval
+from .series import NUMERIC, TERMS, WORKING_DIGITS, ExactField, PrecisionExhausted, Series, polyval
 
-__all__ = ["ConfigurationCurve", "Place", "to_mpc"]
+__all__ = ["EXACT_ROOT_DEGREE", "ConfigurationCurve", "Place", "to_mpc"]
 
 T = sympy.Symbol("t")
 W = sympy.Symbol("w")
 INF = complex("inf")
 
 
+#: Largest degree of an irreducible factor whose roots are taken exactly (radicals).
+EXACT_ROOT_DEGREE = 2
+
+
 def to_mpc(x: Any) -> mpmath.mpc:
     """A sympy number (exact or float), Python or mpmath number as an mpmath complex."""
-    if isinstance(x, sympy.Basic):
-        re, im = sympy.re(x).evalf(WORKING_DIGITS + 10), sympy.im(x).evalf(WORKING_DIGITS + 10)
-        return mpmath.mpc(mpmath.mpf(re), mpmath.mpf(im))
-    return mpmath.mpc(x)
+    return NUMERIC.convert(x)
 
 
 def _poly(expr: Any) -> sympy.Poly:
     return sympy.Poly(sympy.expand(expr), T, domain="QQ")
 
 
-def _ascending(p: sympy.Poly) -> list:
-    """Coefficients of ``p`` in ascending order, as mpmath numbers."""
-    return [to_mpc(c) for c in reversed(p.all_coeffs())]
+def _ascending(p: sympy.Poly, field: Any = NUMERIC) -> list:
+    """Coefficients of ``p`` in ascending order, in ``field``."""
+    return [field.convert(c) for c in reversed(p.all_coeffs())]
 
 
 @dataclass(frozen=True)
@@ -81,12 +82,20 @@ class Place:
         """The joint coordinates ``t_k`` at the place (``inf`` where the denominator vanishes)."""
         out = []
         for num, den in self.joints:
-            d = den.coefficient(0)
-            n = num.coefficient(0)
+            d, n = den.coefficient(0), num.coefficient(0)
+            if den.field.exact:
+                out.append(INF if d == den.field.zero else den.field.to_complex(n / d))
+                continue
             tol = mpmath.mpf("1e-30") * max(abs(n), abs(d), 1)
             # parts below the zero threshold relative to |t_k| are rounding noise: chop them
-            out.append(INF if abs(d) <= tol else complex(mpmath.chop(n / d, mpmath.mpf("1e-30") * max(1, abs(n / d)))))
+            value = INF if abs(d) <= tol else mpmath.chop(n / d, mpmath.mpf("1e-30") * max(1, abs(n / d)))
+            out.append(complex(value))
         return tuple(out)
+
+    @property
+    def exact(self) -> bool:
+        """Whether the series have exact coefficients (an algebraic number field)."""
+        return self.joints[0][1].field.exact
 
 
 class ConfigurationCurve:
@@ -207,10 +216,17 @@ class ConfigurationCurve:
     def bond_candidates(self) -> list:
         """Parameter values where some ``t_k^2 + 1`` vanishes, or ``inf`` (50-digit roots).
 
+        See :meth:`bond_candidate_factors`; this returns only the values.
+        """
+        return [z for z, _ in self.bond_candidate_factors()]
+
+    def bond_candidate_factors(self) -> list[tuple]:
+        """Pairs ``(t0, m)``: candidate parameter values and their irreducible factor over Q.
+
         For each joint, ``N_k = ((a_k + b_k w)^2 + c_k^2)((a_k - b_k w)^2 + c_k^2)``
-        with ``w^2 = g`` is a polynomial in ``t``; its roots, split into irreducible
-        factors over Q first so that each root is simple, and ``t = inf``.  0/0 base
-        points are among them and are sorted out at the places.
+        with ``w^2 = g`` is a polynomial in ``t``; its roots (50 digits), split into
+        irreducible factors ``m`` over Q first so that each root is simple, and
+        ``(inf, None)``.  0/0 base points are among them and are sorted out at the places.
         """
         found: list = []
         for a, b, c in zip(self.a, self.b, self.c):
@@ -223,61 +239,115 @@ class ConfigurationCurve:
             for factor, _ in nk.factor_list()[1]:
                 for r in factor.nroots(n=WORKING_DIGITS, maxsteps=500):
                     z = to_mpc(r)
-                    if all(abs(z - y) > mpmath.mpf("1e-25") * max(1, abs(z)) for y in found):
-                        found.append(z)
-        return found + [INF]
+                    if all(abs(z - y) > mpmath.mpf("1e-25") * max(1, abs(z)) for y, _ in found):
+                        found.append((z, factor))
+        return found + [(INF, None)]
 
     def places(self, t0: Any) -> list[Place]:
-        """The places over ``t0`` (a number or ``inf``), see the module docstring."""
+        """The places over ``t0`` (a number or ``inf``) with 50-digit series, see the module docstring."""
         with mpmath.workdps(WORKING_DIGITS):
-            if t0 == INF or (isinstance(t0, float) and mpmath.isinf(t0)):
-                return self._places_at_infinity()
+            if _is_inf(t0):
+                return [self._place_at(INF, s, NUMERIC, None) for s in self._branches_at_infinity()]
             t0 = to_mpc(t0)
             if self.g is None:
-                return [self._place(t0, 0, Series.exact([t0, 1]), None)]
-            gser = polyval(_ascending(self.g), Series.exact([t0, 1]))
-            if _vanishes(gser.coefficient(0), self.g, t0):
-                # branch point: t = t0 + u^2, g(t0 + u^2) = u^2 h(u)
-                tser = Series.exact([t0, 0, 1])
-                h = polyval(_ascending(self.g), tser)
-                h = Series(h.coeffs[2:], 0, min(h.prec, TERMS + 2) - 2)
-                return [self._place(t0, 0, tser, h.sqrt_unit().shift(1))]
-            root = Series(gser.coeffs, 0, TERMS).sqrt_unit()
-            return [self._place(t0, s, Series.exact([t0, 1]), root * s) for s in (1, -1)]
+                return [self._place_at(t0, 0, NUMERIC, None)]
+            g0 = polyval(_ascending(self.g), Series.exact([t0])).coefficient(0)
+            if _vanishes(g0, self.g, t0):
+                return [self._place_at(t0, 0, NUMERIC, None)]
+            return [self._place_at(t0, s, NUMERIC, None) for s in (1, -1)]
 
-    def _places_at_infinity(self) -> list[Place]:
-        tser = Series.exact([1], -1)
-        if self.g is None:
-            return [self._place(INF, 0, tser, None)]
-        deg = self.g.degree()
-        m = (deg + 1) // 2
-        rev = list(reversed(_ascending(self.g)))  # coefficients of g~(u) = u^deg g(1/u), ascending
-        if deg % 2 == 0:
-            root = Series(rev, 0, TERMS).sqrt_unit().shift(-m)
-            return [self._place(INF, s, tser, root * s) for s in (1, -1)]
-        # odd degree: u = v^2, g~(v^2) = v^2 h(v) with u^(2m) g(1/u) = u g~(u)
-        tser = Series.exact([1], -2)
-        h = polyval(rev, Series.exact([0, 0, 1]))  # g~(v^2)
-        h = Series(h.coeffs, 0, TERMS)
-        # w = u^-m sqrt(u g~(u)) = v^-2m * v * sqrt(g~(v^2))
-        return [self._place(INF, 0, tser, h.sqrt_unit().shift(1 - 2 * m))]
+    def exact_place(self, place: Place, factor: sympy.Poly | None) -> Place | None:
+        """The same place with exact series over an algebraic number field, if one is cheap.
+
+        ``factor`` is the irreducible polynomial over Q with root ``place.t0``
+        (``None`` for ``t0 = inf``).  The field is ``Q(I, t0, r)`` with ``r`` the
+        square root that starts ``w`` at the place (of ``g(t0)``, of ``g'(t0)`` at a
+        branch point, of the leading coefficient of ``g`` at ``inf``), chosen to
+        match the numeric place's branch.  Returns ``None`` (keep the 50-digit
+        place) when ``t0`` is a root of a factor of degree above
+        ``EXACT_ROOT_DEGREE``, where radicals and primitive elements get expensive.
+        """
+        if place.t0 != INF and (factor is None or factor.degree() > EXACT_ROOT_DEGREE):
+            return None
+        t0 = None
+        if place.t0 != INF:
+            t0 = min(sympy.roots(factor.as_expr(), T), key=lambda r: abs(complex(sympy.N(r, 30)) - place.t0))
+        gens = [sympy.I] + ([] if t0 is None else [t0])
+        root = None
+        if self.g is not None:
+            if t0 is None:
+                radicand = self.g.LC()
+            else:
+                g0 = sympy.expand(self.g.as_expr().subs(T, t0))
+                is_branch = sympy.simplify(g0) == 0
+                if is_branch != (place.branch == 0):
+                    return None  # the numeric and exact views disagree: keep the numeric one
+                radicand = sympy.expand(self.g.diff(T).as_expr().subs(T, t0)) if is_branch else g0
+            root = sympy.sqrt(radicand)
+            principal = mpmath.sqrt(to_mpc(radicand))
+            if abs(complex(sympy.N(root, 30)) - complex(principal)) > abs(complex(sympy.N(root, 30)) + complex(principal)):
+                root = -root
+            gens.append(root)
+        field = ExactField(sympy.QQ.algebraic_field(*gens))
+        t0k = None if t0 is None else field.convert(t0)
+        return self._place_at(INF if t0 is None else t0k, place.branch, field, None if root is None else field.convert(root))
+
+    def _branches_at_infinity(self) -> tuple:
+        if self.g is None or self.g.degree() % 2:
+            return (0,)
+        return (1, -1)
+
+    def _place_at(self, t0: Any, branch: int, field: Any, root: Any) -> Place:
+        """One place: ``t0`` in ``field`` (or ``INF``), ``branch`` as in :class:`Place`.
+
+        ``root`` starts the square root series (``None``: the field's principal root).
+        """
+        g = None if self.g is None else _ascending(self.g, field)
+        if _is_inf(t0):
+            if g is None:
+                return self._place(INF, 0, Series.exact([1], -1, field), None)
+            deg = len(g) - 1
+            m = (deg + 1) // 2
+            rev = list(reversed(g))  # g~(u) = u^deg g(1/u), ascending; g~(0) = lc(g) != 0
+            if deg % 2 == 0:  # t = 1/u, w = u^-m sqrt(g~(u)): two places
+                wser = Series(rev, 0, TERMS, field).sqrt_unit(root).shift(-m) * branch
+                return self._place(INF, branch, Series.exact([1], -1, field), wser)
+            # odd degree, a branch point: u = v^2, w = u^-m sqrt(u g~(u)) = v^(1-2m) sqrt(g~(v^2))
+            h = polyval(rev, Series.exact([0, 0, 1], 0, field))
+            wser = Series(h.coeffs, 0, TERMS, field).sqrt_unit(root).shift(1 - 2 * m)
+            return self._place(INF, 0, Series.exact([1], -2, field), wser)
+        if g is None:
+            return self._place(t0, 0, Series.exact([t0, 1], 0, field), None)
+        if branch == 0:  # branch point: t = t0 + u^2, g(t0 + u^2) = u^2 h(u), w = u sqrt(h)
+            tser = Series.exact([t0, 0, 1], 0, field)
+            h = polyval(g, tser)
+            h = Series(h.coeffs[2:], 0, TERMS, field)
+            return self._place(t0, 0, tser, h.sqrt_unit(root).shift(1))
+        tser = Series.exact([t0, 1], 0, field)
+        wser = Series(polyval(g, tser).coeffs, 0, TERMS, field).sqrt_unit(root) * branch
+        return self._place(t0, branch, tser, wser)
 
     def _place(self, t0: Any, branch: int, tser: Series, wser: Series | None) -> Place:
+        field = tser.field
         joints = []
         for a, b, c in zip(self.a, self.b, self.c):
             # an identically zero numerator or denominator is the exact zero series: a
             # Horner zero would carry a spurious negative val at t = inf and cost precision
-            num = Series.exact([]) if a.is_zero else polyval(_ascending(a), tser)
+            num = Series.exact([], 0, field) if a.is_zero else polyval(_ascending(a, field), tser)
             if wser is not None and not b.is_zero:
-                num = num + polyval(_ascending(b), tser) * wser
-            den = Series.exact([]) if c.is_zero else polyval(_ascending(c), tser)
+                num = num + polyval(_ascending(b, field), tser) * wser
+            den = Series.exact([], 0, field) if c.is_zero else polyval(_ascending(c, field), tser)
             orders = [s.order() for s in (num, den) if _known_nonzero(s)]
             if not orders:
                 raise PrecisionExhausted(f"joint coordinates vanish to all computed orders at t = {t0}")
             o = min(orders)
             joints.append(tuple(s.shift(-o).normalized() if _known_nonzero(s) else s.shift(-o) for s in (num, den)))
-        value = t0 if t0 == INF else complex(t0)
+        value = INF if _is_inf(t0) else (field.to_complex(t0) if field.exact else complex(t0))
         return Place(value, branch, tuple(joints))
+
+
+def _is_inf(t0: Any) -> bool:
+    return isinstance(t0, (complex, float)) and mpmath.isinf(abs(t0))
 
 
 def _known_nonzero(s: Series) -> bool:

@@ -1,4 +1,4 @@
-"""Truncated Laurent series in a local parameter ``u``, mpmath coefficients.
+"""Truncated Laurent series in a local parameter ``u`` over mpmath or over an exact number field.
 
 Used to evaluate the joint coordinates and the products ``F_ij`` of a linkage
 along a *place* of its configuration curve (a branch through a point, with a
@@ -8,13 +8,17 @@ A series ``sum_k c_k u^(val + k) + O(u^prec)`` knows its absolute precision
 ``prec``: products and sums propagate it, so an order is never reported from
 coefficients that were not computed.
 
-Zero test (the documented threshold).  Coefficients are computed with
-``mpmath.mp.dps = WORKING_DIGITS = 50``.  A coefficient counts as zero when its
-modulus is below ``ZERO_THRESHOLD = 1e-30`` times the series' scale (the largest
-modulus among its first four computed coefficients, and at least 1).  The 20
-digits between working precision and threshold absorb cancellation in the
-products and in the roots of the bond polynomials; genuine nonzero
-coefficients of the examples are of order ``1e-3`` or larger.
+Two coefficient fields (``Field`` objects):
+
+* ``NUMERIC``: mpmath complex numbers at ``WORKING_DIGITS = 50`` digits.  The zero
+  test is the documented threshold: a coefficient counts as zero when its
+  modulus is below ``ZERO_THRESHOLD = 1e-30`` times the series' scale (the
+  largest modulus among its first four computed coefficients, and at least 1).
+  The 20 digits between working precision and threshold absorb cancellation in
+  the products and in the roots of the bond polynomials; genuine nonzero
+  coefficients of the examples are of order ``1e-3`` or larger.
+* ``ExactField(K)``: elements of a sympy algebraic number field ``K`` (for
+  instance ``Q(I)``); the zero test is exact.
 """
 
 from __future__ import annotations
@@ -23,8 +27,20 @@ from collections.abc import Sequence
 from typing import Any
 
 import mpmath
+import sympy
 
-__all__ = ["EXACT", "TERMS", "WORKING_DIGITS", "ZERO_THRESHOLD", "PrecisionExhausted", "Series", "polyval"]
+__all__ = [
+    "EXACT",
+    "NUMERIC",
+    "TERMS",
+    "WORKING_DIGITS",
+    "ZERO_THRESHOLD",
+    "ExactField",
+    "NumericField",
+    "PrecisionExhausted",
+    "Series",
+    "polyval",
+]
 
 WORKING_DIGITS = 50
 ZERO_THRESHOLD = mpmath.mpf("1e-30")
@@ -38,8 +54,66 @@ class PrecisionExhausted(ArithmeticError):
     """All computed coefficients vanish: the order is at least ``prec``."""
 
 
+class NumericField:
+    """mpmath complex coefficients with the thresholded zero test."""
+
+    exact = False
+
+    def __init__(self):
+        self.zero, self.one = mpmath.mpc(0), mpmath.mpc(1)
+
+    def convert(self, x: Any) -> Any:
+        if type(x) is mpmath.mpc:
+            return x
+        if isinstance(x, sympy.Basic):
+            re, im = sympy.re(x).evalf(WORKING_DIGITS + 10), sympy.im(x).evalf(WORKING_DIGITS + 10)
+            return mpmath.mpc(mpmath.mpf(re), mpmath.mpf(im))
+        return mpmath.mpc(x)
+
+    def first_nonzero(self, coeffs: Sequence[Any]) -> int | None:
+        tol = ZERO_THRESHOLD * max([abs(c) for c in coeffs[:4]] + [mpmath.mpf(1)])
+        return next((k for k, c in enumerate(coeffs) if abs(c) > tol), None)
+
+    def sqrt(self, x: Any) -> Any:
+        return mpmath.sqrt(x)
+
+    def to_complex(self, x: Any) -> complex:
+        return complex(x)
+
+
+class ExactField:
+    """Elements of the sympy algebraic field ``K``; zero means zero."""
+
+    exact = True
+
+    def __init__(self, field: Any):
+        self.field = field
+        self.zero, self.one = field.zero, field.one
+
+    def convert(self, x: Any) -> Any:
+        if isinstance(x, type(self.zero)):
+            return x
+        return self.field.from_sympy(sympy.sympify(x))
+
+    def first_nonzero(self, coeffs: Sequence[Any]) -> int | None:
+        return next((k for k, c in enumerate(coeffs) if c != self.zero), None)
+
+    def sqrt(self, x: Any) -> Any:
+        r = sympy.sqrt(self.field.to_sympy(x))
+        try:
+            return self.field.from_sympy(r)
+        except Exception as err:  # sympy raises CoercionFailed and others
+            raise ArithmeticError(f"sqrt({r}) is not in {self.field}") from err
+
+    def to_complex(self, x: Any) -> complex:
+        return complex(sympy.N(self.field.to_sympy(x), WORKING_DIGITS))
+
+
+NUMERIC = NumericField()
+
+
 class Series:
-    """``sum_k coeffs[k] u^(val + k) + O(u^prec)`` with mpmath complex coefficients.
+    """``sum_k coeffs[k] u^(val + k) + O(u^prec)`` with coefficients in ``field``.
 
     Parameters
     ----------
@@ -49,23 +123,27 @@ class Series:
         Exponent of the first coefficient.
     prec
         Absolute precision: terms ``u^e`` with ``e >= prec`` are unknown.
+    field
+        ``NUMERIC`` (default) or an ``ExactField``.
     """
 
-    __slots__ = ("coeffs", "val", "prec")
+    __slots__ = ("coeffs", "val", "prec", "field")
 
-    def __init__(self, coeffs: Sequence[Any], val: int, prec: int):
+    def __init__(self, coeffs: Sequence[Any], val: int, prec: int, field: Any = NUMERIC):
         # coefficients past the stored ones (and below prec) are exactly zero
-        mpc = mpmath.mpc
-        self.coeffs = [x if type(x) is mpc else mpc(x) for x in list(coeffs)[: max(prec - val, 0)]]
-        self.val, self.prec = val, prec
+        self.coeffs = [field.convert(x) for x in list(coeffs)[: max(prec - val, 0)]]
+        self.val, self.prec, self.field = val, prec, field
 
     @classmethod
-    def exact(cls, coeffs: Sequence[Any], val: int = 0) -> Series:
+    def exact(cls, coeffs: Sequence[Any], val: int = 0, field: Any = NUMERIC) -> Series:
         """A series known exactly (a polynomial in ``u`` times ``u^val``)."""
-        return cls(coeffs, val, EXACT)
+        return cls(coeffs, val, EXACT, field)
+
+    def _new(self, coeffs: Sequence[Any], val: int, prec: int) -> Series:
+        return Series(coeffs, val, prec, self.field)
 
     def _coerce(self, other: Any) -> Series:
-        return other if isinstance(other, Series) else Series.exact([other])
+        return other if isinstance(other, Series) else Series.exact([other], 0, self.field)
 
     def _end(self) -> int:
         """One past the exponent of the last stored coefficient."""
@@ -76,18 +154,18 @@ class Series:
         if e >= self.prec:
             raise PrecisionExhausted(f"coefficient of u^{e} requested; series known up to O(u^{self.prec})")
         k = e - self.val
-        return self.coeffs[k] if 0 <= k < len(self.coeffs) else mpmath.mpc(0)
+        return self.coeffs[k] if 0 <= k < len(self.coeffs) else self.field.zero
 
     def __add__(self, other: Any) -> Series:
         o = self._coerce(other)
         val, prec = min(self.val, o.val), min(self.prec, o.prec)
         end = min(max(self._end(), o._end()), prec)
-        return Series([self.coefficient(e) + o.coefficient(e) for e in range(val, end)], val, prec)
+        return self._new([self.coefficient(e) + o.coefficient(e) for e in range(val, end)], val, prec)
 
     __radd__ = __add__
 
     def __neg__(self) -> Series:
-        return Series([-c for c in self.coeffs], self.val, self.prec)
+        return self._new([-c for c in self.coeffs], self.val, self.prec)
 
     def __sub__(self, other: Any) -> Series:
         return self + (-self._coerce(other))
@@ -97,99 +175,80 @@ class Series:
 
     def __mul__(self, other: Any) -> Series:
         if not isinstance(other, Series):
-            return Series([c * other for c in self.coeffs], self.val, self.prec)
+            c = self.field.convert(other)
+            return self._new([x * c for x in self.coeffs], self.val, self.prec)
         val = self.val + other.val
         # relative precisions: the product is known to the smaller one
         prec = min(self.prec + other.val, other.prec + self.val)
         a, b = self.coeffs, other.coeffs
         n = min(prec - val, len(a) + len(b) - 1)
-        out = [mpmath.mpc(0)] * max(n, 0)
+        zero = self.field.zero
+        out = [zero] * max(n, 0)
         for i in range(min(len(a), n)):
             ai = a[i]
-            if ai == 0:
+            if ai == zero:
                 continue
             for j in range(min(len(b), n - i)):
                 out[i + j] += ai * b[j]
-        return Series(out, val, prec)
+        return self._new(out, val, prec)
 
     __rmul__ = __mul__
 
-    def __pow__(self, k: int) -> Series:
-        if not isinstance(k, int) or k < 0:
-            raise ValueError(f"power must be a non-negative integer; got {k!r}")
-        r = Series.exact([1])
-        for _ in range(k):
-            r = r * self
-        return r
-
-    def scale(self) -> Any:
-        return max([abs(c) for c in self.coeffs[:4]] + [mpmath.mpf(1)])
-
     def order(self) -> int:
-        """Exponent of the first coefficient above the zero threshold.
+        """Exponent of the first nonzero coefficient (thresholded for ``NUMERIC``).
 
         Raises
         ------
         PrecisionExhausted
-            If every computed coefficient is below the threshold (the series is
-            zero as far as it is known).
+            If every computed coefficient is zero (the series is zero as far as it is known).
         """
-        tol = ZERO_THRESHOLD * self.scale()
-        for k, c in enumerate(self.coeffs):
-            if abs(c) > tol:
-                return self.val + k
-        raise PrecisionExhausted(f"no coefficient above {mpmath.nstr(tol, 3)} up to O(u^{min(self.prec, EXACT)})")
+        k = self.field.first_nonzero(self.coeffs)
+        if k is None:
+            raise PrecisionExhausted(f"no nonzero coefficient up to O(u^{min(self.prec, EXACT)})")
+        return self.val + k
 
     def normalized(self) -> Series:
-        """Leading coefficients below the zero threshold dropped: ``val`` becomes the order."""
+        """Leading zero coefficients dropped: ``val`` becomes the order."""
         o = self.order()
-        return Series(self.coeffs[o - self.val :], o, self.prec)
+        return self._new(self.coeffs[o - self.val :], o, self.prec)
 
     def truncated(self, prec: int) -> Series:
         """The same series known only up to ``O(u^prec)``."""
-        return Series(self.coeffs, self.val, min(prec, self.prec))
+        return self._new(self.coeffs, self.val, min(prec, self.prec))
 
     def shift(self, e: int) -> Series:
         """Multiply by ``u^e``."""
-        return Series(self.coeffs, self.val + e, self.prec + e)
+        return self._new(self.coeffs, self.val + e, self.prec + e)
 
-    def leading(self) -> Any:
-        """The coefficient of ``u^order``."""
-        return self.coefficient(self.order())
+    def sqrt_unit(self, root: Any = None) -> Series:
+        """The square root of a unit series (order 0, ``val`` 0), starting with ``root``.
 
-    def reciprocal_unit(self) -> Series:
-        """``1/s`` for a series of order 0 (a unit), by the usual recurrence."""
-        if self.order() != 0 or self.val != 0:
-            raise ValueError(f"reciprocal_unit needs a series of order 0 with val 0; got order {self.order()}")
+        ``root`` is a square root of the constant term (default: the field's own,
+        mpmath's principal branch for ``NUMERIC``).
+        """
+        if self.val != 0 or self.order() != 0:
+            raise ValueError(f"sqrt_unit needs a series of order 0 with val 0; got val {self.val}")
         n = min(self.prec, TERMS)
         a = self.coeffs
-        inv = [1 / a[0]]
+        r = [self.field.sqrt(a[0]) if root is None else self.field.convert(root)]
+        two_r0 = r[0] + r[0]
         for k in range(1, n):
-            s = sum((a[j] * inv[k - j] for j in range(1, min(k, len(a) - 1) + 1)), mpmath.mpc(0))
-            inv.append(-s / a[0])
-        return Series(inv, 0, n)
-
-    def sqrt_unit(self) -> Series:
-        """The square root with ``sqrt(c_0)`` (mpmath's principal branch) of a unit series."""
-        if self.order() != 0 or self.val != 0:
-            raise ValueError(f"sqrt_unit needs a series of order 0 with val 0; got order {self.order()}")
-        n = min(self.prec, TERMS)
-        a = self.coeffs
-        r = [mpmath.sqrt(a[0])]
-        for k in range(1, n):
-            s = sum((r[j] * r[k - j] for j in range(1, k)), mpmath.mpc(0))
-            ak = a[k] if k < len(a) else mpmath.mpc(0)
-            r.append((ak - s) / (2 * r[0]))
-        return Series(r, 0, n)
+            s = self.field.zero
+            for j in range(1, k):
+                s += r[j] * r[k - j]
+            ak = a[k] if k < len(a) else self.field.zero
+            r.append((ak - s) / two_r0)
+        return self._new(r, 0, n)
 
     def __repr__(self) -> str:
-        terms = [f"({mpmath.nstr(c, 6)})u^{self.val + k}" for k, c in enumerate(self.coeffs[:6])]
+        show = (lambda c: mpmath.nstr(c, 6)) if not self.field.exact else str
+        terms = [f"({show(c)})u^{self.val + k}" for k, c in enumerate(self.coeffs[:6])]
         return "Series(" + " + ".join(terms) + f" + O(u^{self.prec}))"
 
 
 def polyval(coefficients: Sequence[Any], x: Series) -> Series:
     """Horner evaluation of ``sum_k coefficients[k] x^k`` (ascending order) at a series."""
-    r = Series.exact([0])
+    r = Series.exact([], 0, x.field)
     for c in reversed(list(coefficients)):
         r = r * x + c
     return r
