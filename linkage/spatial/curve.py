@@ -342,7 +342,7 @@ class ConfigurationCurve:
                 raise PrecisionExhausted(f"joint coordinates vanish to all computed orders at t = {t0}")
             o = min(orders)
             joints.append(tuple(s.shift(-o).normalized() if _known_nonzero(s) else s.shift(-o) for s in (num, den)))
-        value = INF if _is_inf(t0) else (field.to_complex(t0) if field.exact else complex(t0))
+        value = INF if _is_inf(t0) else field.to_complex(t0)
         return Place(value, branch, tuple(joints))
 
 
