@@ -343,3 +343,39 @@ def test_spherical_bonds_at_4_5_plus_3_5_i_sit_at_branch_points():
     assert abs(g(0.8 + 0.6j)) < 1e-12
     at_branch = [b for b in example_chain("spherical").bonds() if abs(abs(b.joints[3].real) - 0.8) < 1e-12]
     assert len(at_branch) == 4 and all(b.branch == 0 for b in at_branch)
+
+
+def _turned(h: DualQuaternion) -> DualQuaternion:
+    """The line ``h`` turned by 45 degrees about the z axis (matrix entries sqrt(2)/2)."""
+    c = sympy.sqrt(2) / 2
+    m = sympy.Matrix([[c, -c, 0], [c, c, 0], [0, 0, 1]])
+    p, q = m * sympy.Matrix(h.primal[1:]), m * sympy.Matrix(h.dual[1:])
+    return DualQuaternion([0, *p, 0, *q])
+
+
+def test_algebraic_axes_give_the_same_bonds():
+    """The Bennett linkage of Example 1 moved rigidly (axes in Q(sqrt 2)): the curve eq. (7)
+    still closes it exactly, and bonds and local distances are eqs. (9) and (14), from 50-digit
+    series of exactly known data."""
+    chain = RevoluteChain([_turned(h) for h in BENNETT], curve=ConfigurationCurve.rational([t - 1, t, t - 1, -t]))
+    assert chain.data == "algebraic"
+    bonds = chain.bonds()
+    assert_same_bond_set([b.joints for b in bonds], BENNETT_BONDS)
+    assert {b.method for b in bonds} == {"mpmath-50"}
+    for b in bonds:
+        expected = D_BENNETT_1 if abs(b.joints[0] ** 2 + 1) < 1e-12 else D_BENNETT_2
+        assert np.array_equal(2 * b.local_distances, expected)
+    assert chain.coupling_space_dimension(1, 3) == 6
+
+
+def test_float_axes_close_but_refuse_bonds():
+    """Rounded axes satisfy closure only to ~1e-16: configuration points and closure work,
+    bonds (zero tests at 1e-30) are refused with a clear message instead of found empty."""
+    chain = RevoluteChain([h.map(float) for h in BENNETT])
+    assert chain.data == "float"
+    point = chain.configuration_point(2.0)
+    assert np.allclose(np.real(point), [-3, -2, -3, 2], atol=1e-9)
+    with pytest.raises(ValueError, match="bonds need exact axes"):
+        chain.bonds()
+    with pytest.raises(NotImplementedError, match="rational axes"):
+        chain.configuration_curve()

@@ -8,6 +8,7 @@ bonds and local distances are still the paper's eqs. (9), (14) and Example 3.
 from __future__ import annotations
 
 import cmath
+import functools
 
 import numpy as np
 import pytest
@@ -37,6 +38,19 @@ EQ13 = [(-(t**2) + 2 * t + 5 - w) / (2 * (t + 3)), (t**2 + 1 + w) / (4 * (2 - t)
 def bennett_eq7(s):
     """eq. (7) with the parameter ``t`` replaced by the expression ``s``."""
     return [s - 1, s, s - 1, -s]
+
+
+@functools.lru_cache(maxsize=None)
+def bennett_form(form: str) -> RevoluteChain:
+    """Example 1 with eq. (7) written on a conic (``t = tau + w``, ``w^2 = tau^2 + 1``), on a
+    circle (``t = w / (1 + tau)``, ``w^2 = 1 - tau^2``) or as printed (``"rational"``)."""
+    tau = sympy.Symbol("tau")
+    curves = {
+        "rational": ConfigurationCurve.rational(bennett_eq7(t)),
+        "conic": ConfigurationCurve.hyperelliptic(bennett_eq7(tau + w), tau**2 + 1, t=tau),
+        "circle": ConfigurationCurve.hyperelliptic(bennett_eq7(w / (1 + tau)), 1 - tau**2, t=tau),
+    }
+    return RevoluteChain(BENNETT, curve=curves[form])
 
 
 def check_bennett(chain):
@@ -71,9 +85,7 @@ def test_bonds_at_branch_points():
     """The Bennett curve on the conic ``w^2 = tau^2 + 1`` via ``t = tau + w`` (birational,
     inverse ``tau = (t - 1/t)/2``): the bonds ``t = +-I`` sit at the branch points
     ``tau = +-I``, where ``tau - tau0`` is not a local parameter (it would double every order)."""
-    tau = sympy.Symbol("tau")
-    curve = ConfigurationCurve.hyperelliptic(bennett_eq7(tau + w), tau**2 + 1, t=tau)
-    bonds = check_bennett(RevoluteChain(BENNETT, curve=curve))
+    bonds = check_bennett(bennett_form("conic"))
     at_branch = [b for b in bonds if b.branch == 0]
     assert sorted(round(b.parameter.imag) for b in at_branch) == [-1, 1]
     assert all(abs(b.parameter.real) < 1e-30 for b in at_branch)
@@ -84,11 +96,10 @@ def test_bonds_at_parameter_infinity_and_a_base_point_at_a_branch_point():
     ``t = w / (1 + tau)``: as ``tau -> inf``, ``w/tau -> +-I``, so the bonds ``t = +-I`` lie
     over ``tau = inf``.  At ``tau = -1`` the formula is 0/0 and a branch point at once; the
     limit there is the home configuration ``t_k = inf``, not a bond."""
-    tau = sympy.Symbol("tau")
-    curve = ConfigurationCurve.hyperelliptic(bennett_eq7(w / (1 + tau)), 1 - tau**2, t=tau)
-    bonds = check_bennett(RevoluteChain(BENNETT, curve=curve))
+    chain = bennett_form("circle")
+    bonds = check_bennett(chain)
     assert sum(b.parameter == complex("inf") for b in bonds) == 2
-    (home,) = curve.places(-1)
+    (home,) = chain.configuration_curve().places(-1)
     assert all(z == complex("inf") for z in home.joint_values())
 
 
@@ -96,13 +107,7 @@ def test_bonds_at_parameter_infinity_and_a_base_point_at_a_branch_point():
 def test_the_50_digit_series_agree_with_the_exact_orders(form):
     """The Bennett linkage in the three forms above: exact orders (multiplicities over Q,
     or series over Q(I, t0, sqrt)) and the forced 50-digit series give the same bonds."""
-    tau = sympy.Symbol("tau")
-    curves = {
-        "rational": None,
-        "conic": ConfigurationCurve.hyperelliptic(bennett_eq7(tau + w), tau**2 + 1, t=tau),
-        "circle": ConfigurationCurve.hyperelliptic(bennett_eq7(w / (1 + tau)), 1 - tau**2, t=tau),
-    }
-    chain = RevoluteChain(BENNETT, curve=curves[form])
+    chain = bennett_form(form)
     exact, series = chain.bonds(), chain.bonds(numeric=True)
     assert {b.method for b in exact} == {"exact"}
     assert {b.method for b in series} == {"mpmath-50"}

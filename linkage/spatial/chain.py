@@ -84,8 +84,22 @@ class Bond:
         return f"Bond(({js}), {kind}, connects {self.connection_numbers}, {self.method})"
 
 
-def _is_exact(x: Any) -> bool:
-    return isinstance(x, (int, Fraction, sympy.Rational)) and not isinstance(x, bool)
+def _kind(x: Any) -> str:
+    """``"rational"``, ``"algebraic"`` (another exact sympy number) or ``"float"``."""
+    if isinstance(x, bool):
+        return "float"
+    if isinstance(x, (int, Fraction, sympy.Rational)):
+        return "rational"
+    if isinstance(x, sympy.Basic) and x.is_number and not x.has(sympy.Float):
+        return "algebraic"
+    return "float"
+
+
+def _is_zero(x: Any, data: str) -> bool:
+    if data == "float":
+        return abs(x) <= AXIS_TOL
+    e = sympy.expand(x)
+    return e == 0 or data == "algebraic" and sympy.simplify(e) == 0
 
 
 def _as_axis(h: Any, k: int) -> DualQuaternion:
@@ -107,7 +121,11 @@ class RevoluteChain:
         (``DualQuaternion.from_line`` builds them from point and direction).  Each
         must satisfy ``h^2 = -1``: zero scalar parts, unit primal vector, primal
         orthogonal to dual.  Consecutive axes (cyclically) must differ (``h_{k+1} != +-h_k``).
-        Integer, ``Fraction`` or sympy-rational coefficients are kept exact.
+        Integer, ``Fraction`` or sympy-rational coefficients are kept exact
+        (``data == "rational"``: exact elimination and exact orders); other exact
+        sympy numbers such as ``sqrt(2)/2`` too (``"algebraic"``: exact checks,
+        orders from 50-digit series); anything else becomes float (``"float"``:
+        closure, configuration points and drawings, but no bonds).
     curve
         Optional configuration curve (e.g. a printed one); it is checked to satisfy
         the closure condition identically.
@@ -123,24 +141,23 @@ class RevoluteChain:
         n = len(axes)
         if not 4 <= n <= 7:
             raise ValueError(f"axes must have 4 to 7 entries (mobility one needs 4 <= n <= 7); got {n}")
-        self.exact = all(_is_exact(x) for h in axes for x in h)
-        if self.exact:
-            axes = [h.map(sympy.Rational) for h in axes]
-        else:
-            axes = [h.map(float) for h in axes]
+        kinds = {_kind(x) for h in axes for x in h}
+        self.data = "float" if "float" in kinds else ("algebraic" if "algebraic" in kinds else "rational")
+        self.exact = self.data == "rational"
+        convert = {"rational": sympy.Rational, "algebraic": sympy.sympify, "float": float}[self.data]
+        axes = [h.map(convert) for h in axes]
         for k, h in enumerate(axes):
             sq = h * h
-            err = [sq[0] + 1] + list(sq.coefficients[1:])
-            if self.exact and any(e != 0 for e in err) or not self.exact and max(abs(e) for e in err) > AXIS_TOL:
+            if not all(_is_zero(e, self.data) for e in [sq[0] + 1, *sq.coefficients[1:]]):
                 raise ValueError(
                     f"axes[{k}] = {h} is not a unit line: h^2 = {sq}, expected -1 "
                     "(zero scalar parts, unit primal vector, primal orthogonal to dual)"
                 )
         for k in range(n):
             a, b = axes[k], axes[(k + 1) % n]
-            diff = max(abs(x - y) for x, y in zip(a, b))
-            summ = max(abs(x + y) for x, y in zip(a, b))
-            if min(diff, summ) <= (0 if self.exact else AXIS_TOL):
+            if all(_is_zero(x - y, self.data) for x, y in zip(a, b)) or all(
+                _is_zero(x + y, self.data) for x, y in zip(a, b)
+            ):
                 raise ValueError(f"axes[{k}] and axes[{(k + 1) % n}] are the same line; consecutive axes must differ")
         self.axes = tuple(axes)
         self.n = n
@@ -153,7 +170,7 @@ class RevoluteChain:
         self._bonds: dict[bool, list[Bond]] = {}
 
     def __repr__(self) -> str:
-        return f"RevoluteChain(n={self.n}, {'exact' if self.exact else 'float'} axes)"
+        return f"RevoluteChain(n={self.n}, {self.data} axes)"
 
     # closure ----------------------------------------------------------------------
     def closure(self, joints: Sequence[Any]) -> DualQuaternion:
@@ -183,7 +200,7 @@ class RevoluteChain:
             e = sympy.expand(e)
             if curve.g is not None:
                 e = sympy.rem(sympy.Poly(e, W), sympy.Poly(W**2 - curve.g.as_expr(), W)).as_expr()
-            if self.exact and sympy.expand(e) != 0 or not self.exact and _max_abs_coeff(e) > 1e-8:
+            if self.data != "float" and not _is_zero(e, self.data) or self.data == "float" and _max_abs_coeff(e) > 1e-8:
                 raise ValueError(f"curve does not satisfy the closure condition: coefficient {k} of the product is {e}")
 
     def configuration_point(
@@ -275,7 +292,9 @@ class RevoluteChain:
                 "pass curve= (e.g. built by motion polynomial factorisation)"
             )
         if not self.exact:
-            raise NotImplementedError("elimination needs exact (rational) axes; a float chain is never exactly mobile")
+            raise NotImplementedError(
+                f"elimination needs rational axes (these are {self.data}); pass curve= to the constructor"
+            )
         self._curve = self._eliminate_4r()
         return self._curve
 
@@ -336,6 +355,12 @@ class RevoluteChain:
         numeric
             Force the 50-digit series everywhere (a cross-check of the exact results).
         """
+        if self.data == "float":
+            raise ValueError(
+                "bonds need exact axes (rationals or sympy numbers): float axes satisfy the closure of an "
+                "overconstrained linkage only to rounding, far above the 50-digit zero threshold; "
+                "convert them, e.g. with sympy.nsimplify"
+            )
         if numeric not in self._bonds:
             curve = self.configuration_curve()
             if curve.is_rational and self.exact and not numeric:
@@ -511,12 +536,12 @@ class RevoluteChain:
         vectors = []
         for s in range(len(idx) + 1):
             for combo in itertools.combinations(idx, s):
-                p = DualQuaternion.scalar(sympy.Integer(1) if self.exact else 1.0)
+                p = DualQuaternion.scalar(1.0 if self.data == "float" else sympy.Integer(1))
                 for k in combo:
                     p = p * self.axes[k]
                 vectors.append(list(p))
-        if self.exact:
-            return sympy.Matrix(vectors).rank()
+        if self.data != "float":
+            return sympy.Matrix(vectors).rank(simplify=True)
         return int(np.linalg.matrix_rank(np.array(vectors, dtype=float), tol=1e-9))
 
     def _check_link(self, i: Any, name: str) -> None:

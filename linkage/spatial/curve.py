@@ -24,6 +24,7 @@ of being read as ``t_k = 0/0``.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -272,7 +273,7 @@ class ConfigurationCurve:
         t0 = None
         if place.t0 != INF:
             t0 = min(sympy.roots(factor.as_expr(), T), key=lambda r: abs(complex(sympy.N(r, 30)) - place.t0))
-        gens = [sympy.I] + ([] if t0 is None else [t0])
+        gens = [sympy.I] + ([] if t0 is None or _gaussian(t0) else [t0])
         root = None
         if self.g is not None:
             if t0 is None:
@@ -287,8 +288,9 @@ class ConfigurationCurve:
             principal = mpmath.sqrt(to_mpc(radicand))
             if abs(complex(sympy.N(root, 30)) - complex(principal)) > abs(complex(sympy.N(root, 30)) + complex(principal)):
                 root = -root
-            gens.append(root)
-        field = ExactField(sympy.QQ.algebraic_field(*gens))
+            if not _gaussian(root):
+                gens.append(root)
+        field = _exact_field(tuple(gens))
         t0k = None if t0 is None else field.convert(t0)
         return self._place_at(INF if t0 is None else t0k, place.branch, field, None if root is None else field.convert(root))
 
@@ -344,6 +346,18 @@ class ConfigurationCurve:
             joints.append(tuple(s.shift(-o).normalized() if _known_nonzero(s) else s.shift(-o) for s in (num, den)))
         value = INF if _is_inf(t0) else field.to_complex(t0)
         return Place(value, branch, tuple(joints))
+
+
+def _gaussian(x: Any) -> bool:
+    """``x`` is in ``Q(I)`` (then it needs no generator of its own)."""
+    re, im = sympy.sympify(x).as_real_imag()
+    return bool(re.is_Rational and im.is_Rational)
+
+
+@functools.lru_cache(maxsize=64)
+def _exact_field(gens: tuple) -> ExactField:
+    """``Q(gens)``, cached: conjugate bonds and repeated calls share the primitive element."""
+    return ExactField(sympy.QQ.algebraic_field(*gens))
 
 
 def _is_inf(t0: Any) -> bool:
