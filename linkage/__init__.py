@@ -2,10 +2,32 @@
 
 May import ``charts`` and ``manifold`` (never the other way round).
 See ``linkage/README.md``.
+
+The names below are loaded on first use (PEP 562), so that importing the
+independent subpackage ``linkage.spatial`` does not pull in ``charts``,
+heyoka or matplotlib through this package.
 """
 
-from .chain import Chain, ConfigurationError
-from .constraints import HingeConstraints
-from .draw import draw_configuration, draw_configurations
+import importlib
 
-__all__ = ["Chain", "ConfigurationError", "HingeConstraints", "draw_configuration", "draw_configurations"]
+_EXPORTS = {
+    "Chain": ".chain",
+    "ConfigurationError": ".chain",
+    "HingeConstraints": ".constraints",
+    "draw_configuration": ".draw",
+    "draw_configurations": ".draw",
+}
+
+__all__ = list(_EXPORTS)
+
+
+def __getattr__(name: str):
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'linkage' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -1,0 +1,91 @@
+"""The linkages of "The Theory of Bonds" (Examples 1, 2, 3, 11, 12) as ``RevoluteChain`` objects.
+
+Examples 1-3 are given by their axes alone (the configuration curve is
+computed).  Examples 11 and 12 are built as the paper describes, by factoring
+quadratic motion polynomials, and carry the paper's printed configuration
+curves, which the constructor checks against the closure condition exactly.
+"""
+
+from __future__ import annotations
+
+import sympy
+from sympy import Rational as R
+
+from .chain import RevoluteChain, motion_factorization
+from .curve import T, ConfigurationCurve
+from .dualquat import DualQuaternion
+
+__all__ = ["bennett", "example_11", "example_12", "example_11_axes", "planar_four_bar", "spherical_four_bar"]
+
+
+def _line(primal, dual) -> DualQuaternion:
+    """``primal`` and ``dual`` vector parts as printed in the paper (exact rationals)."""
+    zero = sympy.Integer(0)
+    return DualQuaternion([zero, *map(sympy.Rational, primal), zero, *map(sympy.Rational, dual)])
+
+
+def bennett() -> RevoluteChain:
+    """Example 1: ``h1 = i``, ``h2 = 9 eps i + j - 9 eps k``, ``h3``, ``h4`` as printed."""
+    return RevoluteChain(
+        [
+            _line([1, 0, 0], [0, 0, 0]),
+            _line([0, 1, 0], [9, 0, -9]),
+            _line([-R(1, 3), -R(2, 3), R(2, 3)], [-4, 4, 2]),
+            _line([R(2, 3), R(1, 3), R(2, 3)], [5, 4, -7]),
+        ]
+    )
+
+
+def spherical_four_bar() -> RevoluteChain:
+    """Example 2: ``h1 = i``, ``h2 = j``, ``h3 = k``, ``h4 = 3/5 i + 4/5 j``."""
+    zero = [0, 0, 0]
+    directions = ([1, 0, 0], [0, 1, 0], [0, 0, 1], [R(3, 5), R(4, 5), 0])
+    return RevoluteChain([_line(d, zero) for d in directions])
+
+
+def planar_four_bar() -> RevoluteChain:
+    """Example 3: ``h1 = eps i + k``, ``h2 = eps j + k``, ``h3 = k``, ``h4 = eps i + 2 eps j + k``."""
+    k = [0, 0, 1]
+    return RevoluteChain([_line(k, [1, 0, 0]), _line(k, [0, 1, 0]), _line(k, [0, 0, 0]), _line(k, [1, 2, 0])])
+
+
+def _factor(left: DualQuaternion, right: DualQuaternion, right_norm) -> tuple:
+    """Refactor ``(t - left)(t - right)`` with the new right factor's norm ``t^2 + m1 t + m0``."""
+    return motion_factorization((left * right, -(left + right)), right_norm)
+
+
+def example_11_axes() -> list[DualQuaternion]:
+    """The axes ``h1..h6`` of Example 11, by the paper's chain of factorisations.
+
+    ``(t - h1)(t - 1 - h2) = (t - 1 - g1)(t - g2)``,
+    ``(t - g2)(t - 2 - h2) = (t - 2 - h4)(t - h3)``,
+    ``(t - 1 - g1)(t - 3 - h4) = (t - 3 - h6)(t - 1 - h5)``,
+    with ``h1 = i`` and ``h2 = eps i + j``.
+    """
+    one = DualQuaternion.scalar(sympy.Integer(1), sympy.Integer(0))
+    h1 = _line([1, 0, 0], [0, 0, 0])
+    h2 = _line([0, 1, 0], [1, 0, 0])
+    g1, g2 = _factor(h1, one + h2, (1, 0))  # N(t - g2) = t^2 + 1
+    g1 = g1 - one
+    h4, h3 = _factor(g2, 2 * one + h2, (1, 0))
+    h4 = h4 - 2 * one
+    h6, h5 = _factor(one + g1, 3 * one + h4, (2, -2))  # N(t - 1 - h5) = t^2 - 2t + 2
+    return [h1, h2, h3, h4, h5 - one, h6 - 3 * one]
+
+
+def example_11() -> RevoluteChain:
+    """Example 11 with its printed curve ``(t, (t^2-3t+1)/(2t-3), -t, t^2-5t+7, -t+1, -t+3)``."""
+    t = T
+    curve = ConfigurationCurve.rational([t, (t**2 - 3 * t + 1) / (2 * t - 3), -t, t**2 - 5 * t + 7, -t + 1, -t + 3])
+    return RevoluteChain(example_11_axes(), curve=curve)
+
+
+def example_12() -> RevoluteChain:
+    """Example 12: ``(t + h1)(t - 3 - h6) = (t - 3 - h1')(t - h6')``, chain ``(h1', h2..h5, h6')``,
+    printed curve ``(3 + t, -(t^2+3t+1)/(2t+3), t, t^2+5t+7, t+1, t)``."""
+    one = DualQuaternion.scalar(sympy.Integer(1), sympy.Integer(0))
+    h1, h2, h3, h4, h5, h6 = example_11_axes()
+    h1p, h6p = _factor(-h1, 3 * one + h6, (1, 0))
+    t = T
+    curve = ConfigurationCurve.rational([3 + t, -(t**2 + 3 * t + 1) / (2 * t + 3), t, t**2 + 5 * t + 7, t + 1, t])
+    return RevoluteChain([h1p - 3 * one, h2, h3, h4, h5, h6p], curve=curve)
