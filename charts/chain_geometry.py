@@ -8,11 +8,12 @@ the interleaved real vector ``(x_1, y_1, ..., x_{n-1}, y_{n-1})``.
 
 from __future__ import annotations
 
-import math
 import numbers
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from manifold.validation import check_real
 
 
 def validate_chain(n: object, L: object) -> tuple[int, float]:
@@ -25,15 +26,14 @@ def validate_chain(n: object, L: object) -> tuple[int, float]:
         raise ValueError(f"n (number of rods) must be an integer >= 2, got {n!r}")
     if n < 2:
         raise ValueError(f"n (number of rods) must be an integer >= 2, got {n}")
+    message = (f"L must be a finite real number with {n - 2} < L < {n} (the range where the configuration "
+               f"space of {n} unit rods is the sphere S^{n - 2}), got L = {L!r}")
     try:
-        Lf = float(L)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ValueError(f"L must be a real number in ({n - 2}, {n}), got {L!r}") from None
-    if not math.isfinite(Lf) or not (n - 2 < Lf < n):
-        raise ValueError(
-            f"L must be finite with {n - 2} < L < {n} (the range where the configuration "
-            f"space of {n} unit rods is the sphere S^{n - 2}), got L = {L!r}"
-        )
+        Lf = check_real("L", L)
+    except ValueError:
+        raise ValueError(message) from None
+    if not (n - 2 < Lf < n):
+        raise ValueError(message)
     return int(n), Lf
 
 

@@ -16,6 +16,7 @@ from manifold.atlas import Atlas
 from manifold.chart import ChartDomainError
 from manifold.precision import as_fp
 from manifold.symbolic import SymbolicChart
+from manifold.validation import real_array
 
 from . import suspension_formula as formula
 from manifold.backends import NUMPY, Cx
@@ -35,6 +36,9 @@ from .suspension_symbolic import SuspensionFamily
 CLOSURE_TOLERANCE = 1e-9
 #: Slack beyond ``|phi| = pi/2`` accepted as rounding in ``get_point``.
 LATITUDE_SLACK = 1e-12
+#: Worst best-chart quality of the cyclic atlas (poles and folds), rounded down from
+#: ``benchmarks/atlas_quality.py`` over ``L - (n-2)`` from 1e-12 to ``2 - 1e-12`` (``docs/atlas_quality.md``).
+QUALITY_FLOOR = {2: 1.0, 3: 0.8, 4: 0.6, 5: 0.6, 6: 0.6, 7: 0.6, 8: 0.6}
 
 
 class SuspensionChart(SymbolicChart):
@@ -55,7 +59,9 @@ class SuspensionChart(SymbolicChart):
     -----
     ``dim = n - 2`` parameters ``(phi_n, ..., phi_4, t)`` with
     ``phi_m in [-pi/2, pi/2]`` and ``t`` any real (period ``2 pi``).
-    ``quality(a) = min_m cos(phi_m)`` (1 for ``n <= 3``, where the chart is global).
+    ``quality(a) = min(cos(phi_n), ..., cos(phi_4), q_A, q_B)``: 0 at the poles (three rods of
+    the order stretched in a line), at the fold of the first two rods (``q_A``) and at the
+    folded triple (``q_B``), see :func:`charts.suspension_formula.fold_qualities`.
     """
 
     def __init__(self, n: int, L: float, order: ArrayLike | None = None, sheet: int = 1) -> None:
@@ -83,10 +89,7 @@ class SuspensionChart(SymbolicChart):
     # -- parameters -----------------------------------------------------------
     def check_parameters(self, a: ArrayLike) -> NDArray:
         """``a`` as floats of shape ``(..., n-2)``, finite, latitudes in ``[-pi/2, pi/2]`` (``ChartDomainError``)."""
-        a = np.asarray(a)
-        if np.iscomplexobj(a):
-            raise ChartDomainError(f"chart parameters must be real, got complex values {a}")
-        a = np.asarray(a, dtype=float)
+        a = real_array("chart parameters", a, finite=False)
         if a.ndim == 0 or a.shape[-1] != self.dim:
             raise ChartDomainError(
                 f"chart parameters must have shape (..., {self.dim}) = (phi_{self.n}..phi_4, t), got shape {a.shape}"
@@ -115,7 +118,7 @@ class SuspensionChart(SymbolicChart):
         return np.broadcast_to(to_real(np.array([z.re + 1j * z.im])), (*a.shape[:-1], 2)).copy()
 
     def get_parameters(self, p: ArrayLike) -> NDArray:
-        p = np.asarray(p, dtype=float)
+        p = real_array("p", p, finite=False)
         if p.ndim == 0 or p.shape[-1] != self.ambient_dim:
             raise ChartDomainError(f"a point has shape (..., {self.ambient_dim}), got {p.shape}")
         if not np.all(np.isfinite(p)):
@@ -197,8 +200,14 @@ class SuspensionAtlas(Atlas):
         The chain.
     switch_threshold
         Quality below which the active chart should be left (default 0.25,
-        well below the worst best-chart quality, about 0.63 for n = 4..8 in
-        ``benchmarks/atlas_quality.py``).
+        well below the worst best-chart quality, 0.60 for n = 4..8 and 0.80
+        for n = 3 in ``benchmarks/atlas_quality.py``).
+
+    Attributes
+    ----------
+    quality_floor
+        The measured worst best-chart quality, rounded down
+        (:data:`QUALITY_FLOOR`; ``None`` where not measured).
     """
 
     def __init__(self, n: int, L: float, switch_threshold: float = 0.25) -> None:
@@ -210,5 +219,5 @@ class SuspensionAtlas(Atlas):
             orders = cyclic_orders(n)
             charts = [SuspensionChart(n, L, o) for o in orders]
             ids = [f"shift{s}" for s in range(n)]
-        super().__init__(charts, ids, switch_threshold)
+        super().__init__(charts, ids, switch_threshold, QUALITY_FLOOR.get(n))
         self.n, self.L = n, L

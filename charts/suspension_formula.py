@@ -66,6 +66,12 @@ class Base:
         X = 4 * D * ops.sin(alpha * up / 2) * ops.sin(alpha * dn / 2)
         return Base(d, self.lo + 4 * D * h * h / (d + D_minus_1), X / (m - 1 + d), m - 1)
 
+    def peel(self, phi: Any, ops: Any) -> tuple[Any, "Base"]:
+        """Peel the last rod at latitude ``phi``: its angle ``theta = alpha sin(phi)`` and the inner base."""
+        alpha = self.alpha(ops)
+        theta = alpha * ops.sin(phi)
+        return theta, self.inner(alpha, theta, ops.one_plus_sin(phi), ops.one_minus_sin(phi), ops)
+
 
 def top_base(n: int, L: Any) -> Base:
     """The whole chain's base: ``L`` with slacks ``L - (n-2)`` and ``n - L``."""
@@ -128,10 +134,9 @@ def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1) -> list[Cx]:
         return z if frame is None else frame * z
 
     for phi in a[:-1]:
-        alpha, s = base.alpha(ops), ops.sin(phi)
-        theta = alpha * s
+        theta, inner = base.peel(phi, ops)
         p = _last_hinge(base.D, theta, ops)
-        base = base.inner(alpha, theta, ops.one_plus_sin(phi), ops.one_minus_sin(phi), ops)
+        base = inner
         outer.append(place(p))
         frame = place(p.scale(1 / base.D))
     D = base.D
@@ -144,6 +149,32 @@ def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1) -> list[Cx]:
     k = ops.cos(t) * scale / (2 * ops.sqrt(p2.abs2()))
     p1 = Cx(p2.re / 2 - k * p2.im, p2.im / 2 + k * p2.re)
     return [place(p1), place(p2)] + outer[::-1]
+
+
+def fold_qualities(a: Sequence[Any], L: Any, ops: Any) -> list[Any]:
+    """The chart's two quality terms at its circle level (the first three rods of its order), in ``[0, 1]``.
+
+    With the circle level's base ``D``, ``lo = D - 1``, ``alpha`` and ``theta = alpha sin t``:
+
+    * ``q_A = P2 / (P2 + lo/4)``, ``P2 = |p_2|^2 = lo^2 + 4 D sin^2(theta/2)``: the fold of the
+      first two rods (``p_2 -> 0``), where ``sigma_max(J) ~ pi / |p_2|``; measured
+      ``sigma_max(J) q_A`` in ``[1.2, 16.9]`` for n = 4..8 and ``L - (n-2)`` down to 1e-12;
+    * ``q_B = sqrt(cos^2 t + sin^2 t cos(alpha/2))``, ``cos^2(alpha/2) = lo (3 + D) / (4 D)``: the
+      folded triple (``D -> 1`` at ``t = +-pi/2``), where ``sigma_min(J) ~ 1.14 (L - (n-2))^(1/4)``;
+      measured ``sigma_min(J) / q_B`` in ``[0.63, 4.4]``.
+
+    Both are written from the carried slack ``lo``: no cancellation near ``L = n - 2``
+    (``docs/atlas_quality.md``).
+    """
+    base = top_base(len(a) + 2, L)
+    for phi in a[:-1]:
+        _, base = base.peel(phi, ops)
+    t, D, lo = a[-1], base.D, base.lo
+    h = ops.sin(base.alpha(ops) * ops.sin(t) / 2)
+    P2 = lo * lo + 4 * D * h * h
+    cos_half_alpha = ops.sqrt(lo * (3 + D) / (4 * D))
+    s, c = ops.sin(t), ops.cos(t)
+    return [P2 / (P2 + lo / 4), ops.sqrt(c * c + s * s * cos_half_alpha)]
 
 
 def parameters(z: Sequence[Cx], L: Any, ops: Any) -> list[Any]:
@@ -202,12 +233,11 @@ def rod_angles(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1) -> list[Any]:
     n = len(a) + 2
     base, R, tail = top_base(n, L), 0.0, []
     for phi in a:
-        alpha = base.alpha(ops)
-        theta = alpha * ops.sin(phi)
+        theta, inner = base.peel(phi, ops)
         p = _last_hinge(base.D, theta, ops)
         tail.append(R + theta)
         R = R + ops.atan2(p.im, p.re)
-        base = base.inner(alpha, theta, ops.one_plus_sin(phi), ops.one_minus_sin(phi), ops)
+        base = inner
         if base.m == 2:
             sheet = np.sign(ops.cos(phi))
     beta = ops.atan2(ops.sqrt(base.hi * (2 + base.D)), base.D)  # acos(D/2), accurate near D = 2

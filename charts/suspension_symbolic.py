@@ -59,5 +59,7 @@ class SuspensionFamily(ChartFamily):
         return [part for h in z for part in (h.re, h.im)]
 
     def quality_expressions(self, a):
-        """``cos(phi_m)`` for every latitude (none for ``n = 3``: the circle chart is global)."""
-        return [hy.cos(x) for x in list(a)[:-1]]
+        """``cos(phi_m)`` for every latitude (the poles), then the fold terms ``q_A``, ``q_B``
+        (:func:`charts.suspension_formula.fold_qualities`)."""
+        a = list(a)
+        return [hy.cos(x) for x in a[:-1]] + formula.fold_qualities(a, hy.par[0], HeyokaOps(float))

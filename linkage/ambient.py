@@ -43,13 +43,13 @@ from scipy.integrate import solve_ivp
 
 from charts.chain_geometry import to_real
 from manifold import CallableDense, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
-from manifold.validation import check_real
+from manifold.validation import check_bool, check_real
 
 from .chain import Chain
-from .constraints import HingeConstraints
+from .constraints import HingeConstraints, start_state
 from .motion import ChainMotion
 
-__all__ = ["integrate_ambient", "start_state"]
+__all__ = ["integrate_ambient"]
 
 
 def _energy(v: NDArray, K: NDArray) -> NDArray:
@@ -66,55 +66,6 @@ def _segment_bounds(t_final: float, interval: float | None) -> NDArray:
     if b[-1] - b[-2] < 1e-9 * interval:  # do not leave a sliver of a segment
         b = np.delete(b, -2)
     return b if t_final > 0 else 0.0 - b  # 0.0 - b: no -0.0 at the start
-
-
-def start_state(
-    chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, tangent_tol: float, project_velocity: bool
-) -> tuple[HingeConstraints, NDArray, NDArray, float]:
-    """Validate the start of a hinge-space integration (shared by every hinge-space method).
-
-    Parameters
-    ----------
-    chain
-        The chain.
-    hinges0
-        Complex initial hinges; must close to ``1e-9`` (else ``ConfigurationError``).
-    velocity0
-        Complex initial hinge velocities, ``n - 1`` finite entries, tangent:
-        ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)`` (else ``ValueError``)
-        unless ``project_velocity``.
-    t_final
-        End time, finite and nonzero (:func:`manifold.validation.check_real`).
-    tangent_tol
-        Relative tolerance of the tangency check, ``> 0``.
-    project_velocity
-        Replace a non-tangent ``velocity0`` by its K-orthogonal projection
-        :meth:`HingeConstraints.project_velocity` instead of refusing it.
-
-    Returns
-    -------
-    tuple
-        ``(constraints, x0, v0, t_final)``: the chain's :class:`HingeConstraints`,
-        the real interleaved start position and velocity, and ``t_final`` as a float.
-    """
-    h0 = chain.check_configuration(hinges0, tol=1e-9)
-    v0 = chain.as_hinges(velocity0, "velocity0")
-    if v0.shape != (chain.n - 1,):
-        raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
-    t_final = check_real("t_final", t_final, nonzero=True)
-    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
-    system = HingeConstraints(chain)
-    x0, v0 = to_real(h0).astype(float), to_real(v0).astype(float)
-    residual = np.max(np.abs(system.jacobian(x0) @ v0))
-    if residual > tangent_tol * max(1.0, np.linalg.norm(v0)):
-        if not project_velocity:
-            raise ValueError(
-                f"velocity0 is not tangent to the configuration space: max_k |(G v)_k| = {residual:.3g} "
-                f"exceeds tangent_tol * max(1, |v|) = {tangent_tol * max(1.0, np.linalg.norm(v0)):.3g} "
-                "(pass project_velocity=True to project it)"
-            )
-        v0 = system.project_velocity(x0, v0)
-    return system, x0, v0, t_final
 
 
 def integrate_ambient(
@@ -192,6 +143,8 @@ def integrate_ambient(
     """
     system, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
     interval = check_real("projection_interval", projection_interval, positive=True) if project else None
+    rtol, atol = check_real("rtol", rtol, positive=True), check_real("atol", atol, positive=True)
+    project, throw = check_bool("project", project), check_bool("throw", throw)
 
     if t_eval is not None:
         t_eval = np.asarray(t_eval, dtype=float)

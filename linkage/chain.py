@@ -186,12 +186,24 @@ class Chain:
             raise ConfigurationError(f"rod angles do not close: |sum e^(i theta) - L| = {np.max(gap):.3g} > tol = {tol:g}")
         return hinges_from_rods(e)
 
-    @staticmethod
-    def to_point(hinges: ArrayLike) -> NDArray:
-        """Complex hinges to the interleaved real point used by charts."""
-        return to_real(hinges)
+    def to_point(self, hinges: ArrayLike) -> NDArray:
+        """Complex hinges ``(..., n-1)`` to the interleaved real point ``(..., 2(n-1))`` used by charts.
 
-    @staticmethod
-    def from_point(point: ArrayLike) -> NDArray:
-        """Interleaved real point to complex hinges."""
-        return to_complex(point)
+        Real input is refused (``ConfigurationError``): it is most likely a point already.
+        """
+        h = np.asarray(hinges)
+        if h.dtype.kind != "c" or h.ndim == 0 or h.shape[-1] != self.n - 1:
+            raise ConfigurationError(f"to_point takes complex hinges of shape (..., {self.n - 1}), "
+                                     f"got {h.dtype.name} values of shape {h.shape}")
+        return to_real(h)
+
+    def from_point(self, point: ArrayLike) -> NDArray:
+        """Interleaved real point ``(..., 2(n-1))`` to complex hinges ``(..., n-1)``.
+
+        Complex input is refused (``ConfigurationError``): it is most likely hinges already.
+        """
+        p = np.asarray(point)
+        if p.dtype.kind not in "iuf" or p.ndim == 0 or p.shape[-1] != 2 * (self.n - 1):
+            raise ConfigurationError(f"from_point takes real points of shape (..., {2 * (self.n - 1)}), "
+                                     f"got {p.dtype.name} values of shape {p.shape}")
+        return to_complex(p)

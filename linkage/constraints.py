@@ -28,11 +28,14 @@ projection of a position onto ``c = 0``.  Everything is float64.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
+
+from charts.chain_geometry import to_real
+from manifold.validation import check_real
 
 from .chain import Chain
 
-__all__ = ["HingeConstraints"]
+__all__ = ["HingeConstraints", "start_state"]
 
 #: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
 _PROJECTION_STEPS = 8
@@ -244,3 +247,56 @@ class HingeConstraints:
         """
         x = self.project_position(y[: self.ambient_dim])
         return np.concatenate([x, self.project_velocity(x, y[self.ambient_dim :])])
+
+
+def start_state(
+    chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, tangent_tol: float, project_velocity: bool
+) -> tuple[HingeConstraints, NDArray, NDArray, float]:
+    """Validate the start of a hinge-space integration (shared by every hinge-space method).
+
+    Parameters
+    ----------
+    chain
+        The chain.
+    hinges0
+        Complex initial hinges; must close to ``1e-9`` (else ``ConfigurationError``).
+    velocity0
+        Complex initial hinge velocities, ``n - 1`` finite entries, tangent:
+        ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)`` (else ``ValueError``)
+        unless ``project_velocity``.
+    t_final
+        End time, finite and nonzero (:func:`manifold.validation.check_real`).
+    tangent_tol
+        Relative tolerance of the tangency check, ``> 0``.
+    project_velocity
+        Replace a non-tangent ``velocity0`` by its K-orthogonal projection
+        :meth:`HingeConstraints.project_velocity` instead of refusing it.
+
+    Returns
+    -------
+    tuple
+        ``(constraints, x0, v0, t_final)``: the chain's :class:`HingeConstraints`,
+        the real interleaved start position and velocity, and ``t_final`` as a float.
+    """
+    h0 = chain.check_configuration(hinges0, tol=1e-9)
+    v0 = chain.as_hinges(velocity0, "velocity0")
+    if v0.shape != (chain.n - 1,):
+        raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
+    t_final = check_real("t_final", t_final, nonzero=True)
+    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
+    system = HingeConstraints(chain)
+    x0, v0 = to_real(h0).astype(float), to_real(v0).astype(float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        energy = 0.5 * v0 @ system.K @ v0
+    if not np.isfinite(energy):
+        raise ValueError(f"velocity0 gives a non-finite kinetic energy (max |velocity0| = {np.max(np.abs(v0)):.3g})")
+    residual = np.max(np.abs(system.jacobian(x0) @ v0))
+    if residual > tangent_tol * max(1.0, np.linalg.norm(v0)):
+        if not project_velocity:
+            raise ValueError(
+                f"velocity0 is not tangent to the configuration space: max_k |(G v)_k| = {residual:.3g} "
+                f"exceeds tangent_tol * max(1, |v|) = {tangent_tol * max(1.0, np.linalg.norm(v0)):.3g} "
+                "(pass project_velocity=True to project it)"
+            )
+        v0 = system.project_velocity(x0, v0)
+    return system, x0, v0, t_final

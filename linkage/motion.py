@@ -17,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from manifold import GeodesicSolution, solve_chart_exp_ode
 
 from .chain import Chain
+from .constraints import start_state
 
 
 class ChainMotion:
@@ -104,22 +105,39 @@ class ChainMotion:
         return [c for k, c in enumerate(ids) if k == 0 or c != ids[k - 1]]
 
 
-def free_motion(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, **kwargs: Any) -> ChainMotion:
+def free_motion(
+    chain: Chain,
+    hinges0: ArrayLike,
+    velocity0: ArrayLike,
+    t_final: float,
+    *,
+    tangent_tol: float = 1e-9,
+    project_velocity: bool = False,
+    **kwargs: Any,
+) -> ChainMotion:
     """Integrate the chain's force-free motion from ``hinges0`` with hinge velocity ``velocity0``.
+
+    The start is checked in hinge space, where the rod constraints give an
+    exact tangency test independent of any chart (:func:`linkage.constraints.start_state`);
+    the motion is then integrated through the atlas.
 
     Parameters
     ----------
     chain
         The chain (its masses define the metric).
     hinges0, velocity0
-        Complex interior hinges (must close) and their velocity (must be tangent,
-        unless ``project_velocity=True``).
+        Complex interior hinges (must close to ``1e-9``) and their velocity
+        (tangent: ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)``).
     t_final
-        Final time (finite; negative integrates backward).
+        Final time (finite, nonzero; negative integrates backward).
+    tangent_tol
+        Tolerance of the tangency check.
+    project_velocity
+        Project a non-tangent ``velocity0`` K-orthogonally instead of refusing it.
     **kwargs
-        Passed to :func:`~manifold.geodesic_solver.solve_chart_exp_ode`
-        (``fp_type``, ``tol``, ``q_out``, ``form``, ``project_velocity``, ``dense``, ...).
+        Passed to :func:`manifold.solve_chart_exp_ode` (``stepper``, ``fp_type``,
+        ``tol``, ``q_out``, ``form``, ``dense``, ``t_eval``, ``throw``, ...).
     """
-    h0 = chain.check_configuration(hinges0)
-    v0 = chain.as_hinges(velocity0, "velocity")
-    return ChainMotion(chain, solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0), t_final, **kwargs))
+    _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
+    # velocity0 is tangent to tangent_tol (checked above): the solver's own projection only removes rounding
+    return ChainMotion(chain, solve_chart_exp_ode(chain.metric(), x0, v0, t_final, project_velocity=True, **kwargs))

@@ -15,6 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .chart import Chart, ChartDomainError
+from .validation import check_index, check_real, real_array
 
 
 class Atlas:
@@ -31,6 +32,9 @@ class Atlas:
         falls below this value.  It must lie below the worst best-chart
         quality of the atlas, so that the chart picked after a switch is
         far from its own threshold (hysteresis: no chattering).
+    quality_floor
+        A lower bound of the best chart's quality at every point, if known
+        (measured or proven); solvers refuse a switch threshold at or above it.
     """
 
     def __init__(
@@ -38,6 +42,7 @@ class Atlas:
         charts: Sequence[Chart],
         ids: Sequence[Hashable] | None = None,
         switch_threshold: float = 0.25,
+        quality_floor: float | None = None,
     ) -> None:
         charts = list(charts)
         if not charts:
@@ -53,8 +58,13 @@ class Atlas:
         ids = list(range(len(charts))) if ids is None else list(ids)
         if len(ids) != len(charts):
             raise ValueError(f"got {len(ids)} ids for {len(charts)} charts")
-        if not 0.0 < switch_threshold < 1.0:
-            raise ValueError(f"switch_threshold must lie in (0, 1), got {switch_threshold!r}")
+        switch_threshold = check_real("switch_threshold", switch_threshold, positive=True)
+        if quality_floor is not None:
+            quality_floor = check_real("quality_floor", quality_floor, positive=True, at_most=1.0)
+        if not switch_threshold < (1.0 if quality_floor is None else quality_floor):
+            raise ValueError(f"switch_threshold must lie in (0, {quality_floor or 1.0:g}) (below the atlas's "
+                             f"quality floor), got {switch_threshold!r}")
+        self.quality_floor = quality_floor
         self.charts = charts
         self.ids = ids
         self.switch_threshold = float(switch_threshold)
@@ -64,11 +74,17 @@ class Atlas:
         return len(self.charts)
 
     def _chart(self, i: int) -> Chart:
-        if not (isinstance(i, (int, np.integer)) and 0 <= i < len(self.charts)):
-            raise IndexError(f"chart index must be an integer in [0, {len(self.charts) - 1}], got {i!r}")
-        return self.charts[i]
+        return self.charts[check_index("chart index", i, len(self.charts))]
 
-    def _all_parameters(self, p: ArrayLike) -> tuple[list[NDArray | None], NDArray]:
+    def _point(self, p: ArrayLike) -> NDArray:
+        """``p`` as a real array of shape ``(..., ambient_dim)`` (``TypeError`` for complex input)."""
+        p = real_array("p", p, finite=False)
+        if p.ndim == 0 or p.shape[-1] != self.ambient_dim:
+            raise ValueError(f"a point has shape (..., {self.ambient_dim}), got {p.shape}")
+        return p
+
+    def _all_parameters(self, p: NDArray) -> tuple[list[NDArray | None], NDArray]:
+        """Parameters and quality of the single point ``p`` in every chart."""
         params, q, errors = [], [], []
         for c in self.charts:
             try:
@@ -83,22 +99,33 @@ class Atlas:
         return params, np.array(q)
 
     def qualities(self, p: ArrayLike) -> NDArray:
-        """Quality of every chart at point ``p``: array of shape ``(len(atlas),)``.
+        """Quality of every chart at point ``p``: shape ``(len(atlas),)``, or ``p.shape[:-1] + (len(atlas),)``.
 
         ``-inf`` for a chart whose image does not contain ``p``.
         """
-        return self._all_parameters(p)[1]
+        p = self._point(p)
+        if p.ndim == 1:
+            return self._all_parameters(p)[1]
+        return np.stack([self._all_parameters(x)[1] for x in p.reshape(-1, p.shape[-1])]).reshape(
+            *p.shape[:-1], len(self.charts))
 
-    def get_chart_index(self, p: ArrayLike) -> int:
-        """Index of the chart of best quality at ``p`` (lowest index on ties)."""
+    def get_chart_index(self, p: ArrayLike) -> int | NDArray:
+        """Index of the chart of best quality at ``p`` (lowest index on ties); an int array for a batch."""
         return self.best_chart(p)[0]
 
-    def best_chart(self, p: ArrayLike) -> tuple[int, NDArray]:
+    def best_chart(self, p: ArrayLike) -> tuple[int | NDArray, NDArray]:
         """``(i, a)``: the index ``get_chart_index(p)`` and the parameters of ``p`` in that chart.
 
         One inverse per chart, where ``get_chart_index`` followed by
-        ``get_parameters`` would invert the chosen chart twice.
+        ``get_parameters`` would invert the chosen chart twice.  A batch of
+        points (shape ``(..., ambient_dim)``) is handled point by point and
+        gives arrays of indices ``(...)`` and parameters ``(..., dim)``.
         """
+        p = self._point(p)
+        if p.ndim > 1:
+            flat = [self.best_chart(x) for x in p.reshape(-1, p.shape[-1])]
+            idx = np.array([i for i, _ in flat]).reshape(p.shape[:-1])
+            return idx, np.stack([a for _, a in flat]).reshape(*p.shape[:-1], self.dim)
         params, q = self._all_parameters(p)
         i = int(np.argmax(q))
         return i, params[i]

@@ -228,9 +228,18 @@ class ChartNumerics:
         return (self.M @ z).T + self.m, (self.M @ Jc).T, E
 
     def coefficients(self, a: NDArray, v: NDArray) -> NDArray:
-        """``c = g^{-1} J^T K v``: the K-orthogonal tangent coefficients of the embedded ``v``."""
-        out = self._eval(a[:, None], np.zeros((self.k, 1)), (self.M_inv @ v)[:, None])
-        return out[2 * self.N : 2 * self.N + self.k, 0]
+        """``c = g^{-1} J^T K v``: the K-orthogonal tangent coefficients of the embedded ``v``.
+
+        The normal equations lose ``cond(g)`` (large for strongly unequal
+        masses); one step of iterative refinement, ``c += g^{-1} J^T K (v - J c)``
+        with the residual in the working precision, brings ``J c`` back to ``v``
+        to rounding wherever ``cond(g) eps < 1``.
+        """
+        u = self.M_inv @ v
+        zero_c = np.zeros((self.k, 1))
+        c = self._eval(a[:, None], zero_c, u[:, None])[2 * self.N : 2 * self.N + self.k, 0]
+        Jc = self._eval(a[:, None], c[:, None], np.zeros((self.N, 1)))[self.N : 2 * self.N, 0]
+        return c + self._eval(a[:, None], zero_c, (u - Jc)[:, None])[2 * self.N : 2 * self.N + self.k, 0]
 
     def polish(self, a: NDArray, p: NDArray) -> NDArray:
         """Gauss-Newton steps ``a += g^{-1} J^T W (z* - z(a))`` toward ``p`` in the working precision.

@@ -17,6 +17,7 @@ how they advance inside a chart.
 
 from __future__ import annotations
 
+import numbers
 import time
 from typing import Any
 
@@ -29,6 +30,18 @@ from .precision import as_fp, unit_roundoff
 from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import Stepper, TaylorStepper
 from .symbolic import SymbolicChart
+from .validation import check_bool, check_index, check_real, real_array
+
+
+#: A start point whose chart parameters give back a point farther than this (times ``max(1, |p0|)``) is refused:
+#: the start is never silently moved.
+START_POINT_TOLERANCE = 1e-9
+#: The energy check: a solve fails where ``|E - E0| > (ENERGY_SAFETY sqrt(steps + 1) + ENERGY_FLOOR) tol E0``, ``tol`` the
+#: stepper's relative tolerance.  Well-conditioned runs stay below ``10 tol sqrt(steps)``; near a fold (L close to n-2) the
+#: chart conditioning costs up to two more digits.
+ENERGY_SAFETY = 1000.0
+#: Evaluating ``E`` itself loses ``tol`` times the chart's conditioning (up to ``1/sqrt(L - (n-2))`` near a fold).
+ENERGY_FLOOR = 1e5
 
 
 class _NoGoodChart(Exception):
@@ -110,6 +123,10 @@ def solve_chart_exp_ode(
     GeodesicSolution
     """
     wall0 = time.perf_counter()
+    switching, project_velocity = check_bool("switching", switching), check_bool("project_velocity", project_velocity)
+    dense, throw = check_bool("dense", dense), check_bool("throw", throw)
+    if isinstance(max_switches, (bool, np.bool_)) or not isinstance(max_switches, numbers.Integral) or max_switches < 1:
+        raise ValueError(f"max_switches must be a positive integer, got {max_switches!r}")
     if stepper is None:
         stepper = TaylorStepper(tol)
     elif tol is not None:
@@ -118,6 +135,7 @@ def solve_chart_exp_ode(
                                                 project_velocity, tangent_tol, t_eval, chart)
     switch_seconds = time.perf_counter() - wall0
     atlas, num, k = metric.atlas, sol.chart_numerics, metric.atlas.dim
+    energy_tol = stepper.relative_tolerance(fp_type)
     family = compiled(atlas.charts[0].family)
     two_pi = 8 * np.arctan(as_fp(1.0, fp_type))  # 2 pi exact to fp_type
     backward = t_end < 0
@@ -133,11 +151,16 @@ def solve_chart_exp_ode(
             adv = advance(t, np.concatenate([a, c]), fp_type(t_end), num[i].pars, dense or grid is not None)
             sol.segments.append(Segment(i, t, adv.t, adv.n_steps, adv.dense if dense else None))
             _, _, E = num[i].point_velocity_energy(adv.step_states[:, :k].T, adv.step_states[:, k:].T)
+            recorded = len(sol.energies)
             sol.energy_times.extend(adv.step_times)
             sol.energies.extend(np.atleast_1d(E))
+            violation = _energy_violation(sol, recorded, energy_tol, atlas.ids[i])
             if grid is not None:
                 n_grid = _record_grid(sol, grid, n_grid, adv, i, sign)
             a, c, t = adv.y[:k], adv.y[k:], adv.t
+            if violation is not None:
+                status, message = SolveStatus.ENERGY_CHECK_FAILED, violation
+                break
             if adv.failure is not None or adv.event is None:
                 if adv.failure is not None:
                     status, message = SolveStatus.STEPPER_FAILED, f"integration failed at t = {t}: {adv.failure} (chart {atlas.ids[i]})"
@@ -179,23 +202,28 @@ def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_
         raise ValueError("a 0-dimensional manifold has no geodesic motion")
     if not all(isinstance(ch, SymbolicChart) for ch in atlas.charts):
         raise TypeError("geodesic solvers need SymbolicChart charts (heyoka expressions of the chart map)")
-    t_final = float(t_final)
-    if not np.isfinite(t_final):
-        raise ValueError(f"t_final must be finite, got {t_final!r}")
-    q_out = atlas.switch_threshold if q_out is None else float(q_out)
-    if not 0 < q_out < 1:
-        raise ValueError(f"q_out must lie in (0, 1), got {q_out!r}")
+    t_final = check_real("t_final", t_final)
+    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
+    if q_out is None:
+        q_out = atlas.switch_threshold
+    else:
+        q_out = check_real("q_out", q_out, positive=True)
+        floor = atlas.quality_floor
+        if q_out >= (1.0 if floor is None else floor):
+            raise ValueError(f"q_out must lie in (0, {1.0 if floor is None else floor:g}): this atlas guarantees a chart "
+                             f"of quality {floor} everywhere, not more; got q_out = {q_out!r}")
     if not switching:
         q_out = -2.0
     grid = None
     if t_eval is not None:
-        grid = np.asarray(t_eval, dtype=float)
+        grid = real_array("t_eval", t_eval)
         lo, hi = sorted((0.0, t_final))
         ordered = np.all(np.diff(grid) * (1.0 if t_final >= 0 else -1.0) >= 0)
         if grid.ndim != 1 or not np.all((grid >= lo) & (grid <= hi)) or not ordered:
             raise ValueError(f"t_eval must be a 1-d array of times within [0, {t_final:g}] in integration order, "
                              f"got {t_eval!r}")
     if chart is not None:
+        chart = check_index("chart", chart, len(atlas))
         a0, c0 = _as_vector(p0, "a", atlas.dim), _as_vector(v0, "c", atlas.dim)
         p0, v0 = atlas.get_point(chart, a0), atlas.charts[chart].tangent_vector(a0, c0)
     p0, v0 = _as_vector(p0, "p0", atlas.ambient_dim), _as_vector(v0, "v0", atlas.ambient_dim)
@@ -207,15 +235,24 @@ def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_
     # validates p0 (closure, shape, finiteness)
     i, a = atlas.best_chart(p0) if chart is None else (chart, atlas.get_parameters(chart, p0))
     num = numerics[i]
-    a = num.polish(as_fp(a, fp_type), as_fp(p0, fp_type))
-    c = num.coefficients(a, as_fp(v0, fp_type))
-    _, v_tan, E0 = num.point_velocity_energy(a[:, None], c[:, None])
-    off = float(np.max(np.abs((v_tan[0] - as_fp(v0, fp_type)).astype(float))))
+    p0_fp, v0_fp = as_fp(p0, fp_type), as_fp(v0, fp_type)
+    a = num.polish(as_fp(a, fp_type), p0_fp)
+    c = num.coefficients(a, v0_fp)
+    p_start, v_tan, E0 = num.point_velocity_energy(a[:, None], c[:, None])
+    scale = max(1.0, float(np.max(np.abs(p0))))
+    moved = float(np.max(np.abs((p_start[0] - p0_fp).astype(float))))
+    if moved > START_POINT_TOLERANCE * scale:
+        raise ValueError(f"p0 cannot be represented in chart {atlas.ids[i]} to {START_POINT_TOLERANCE:g}: its "
+                         f"parameters give a point {moved:.3g} away (an ill-conditioned chart); the start is refused "
+                         "rather than moved")
+    off = float(np.max(np.abs((v_tan[0] - v0_fp).astype(float))))
     if off > tangent_tol * max(1.0, float(np.max(np.abs(v0)))) and not project_velocity:
         raise ValueError(
             f"v0 is not tangent at p0: it is {off:.3g} away from the tangent space "
             f"(allowed {tangent_tol:g} * max(1, |v0|)); pass project_velocity=True to project it"
         )
+    if not np.isfinite(float(E0[0])):
+        raise ValueError(f"v0 gives a non-finite kinetic energy {float(E0[0])} (|v0| = {np.max(np.abs(v0)):.3g})")
     sol.energy_times.append(fp_type(0.0))
     sol.energies.append(E0[0])
     return sol, i, a, c, q_out, t_final, grid
@@ -255,9 +292,23 @@ def _record_grid(sol: GeodesicSolution, grid: NDArray, done: int, adv: Any, i: i
 
 
 def _as_vector(x: ArrayLike, name: str, N: int) -> NDArray:
-    x = np.asarray(x, dtype=float)
+    x = real_array(name, x)
     if x.shape != (N,):
         raise ValueError(f"{name} must have shape ({N},), got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError(f"{name} must be finite, got {x}")
     return x
+
+
+def _energy_violation(sol: GeodesicSolution, start: int, tol: float, chart: Any) -> str | None:
+    """A sentence if an energy recorded since index ``start`` breaks the bound, else ``None``."""
+    E = np.array([float(e) for e in sol.energies[start:]])
+    E0 = float(sol.energies[0])
+    bound = (ENERGY_SAFETY * np.sqrt(sol.n_steps + 1) + ENERGY_FLOOR) * tol * max(E0, np.finfo(float).tiny)
+    err = np.abs(E - E0)
+    bad = ~(err <= bound)  # NaN counts as a violation
+    if not np.any(bad):
+        return None
+    k = int(np.argmax(bad))
+    return (f"energy check failed at t = {float(sol.energy_times[start + k]):.6g} in chart {chart}: "
+            f"|E - E0| / E0 = {err[k] / max(E0, np.finfo(float).tiny):.3g} exceeds the bound "
+            f"{bound / max(E0, np.finfo(float).tiny):.3g} = ({ENERGY_SAFETY:g} sqrt(steps + 1) + {ENERGY_FLOOR:g}) tol "
+            f"(tol = {tol:.3g})")

@@ -30,6 +30,7 @@ class SolveStatus(enum.Enum):
     STEPPER_FAILED = "the stepper failed"
     MAX_SWITCHES = "max_switches chart switches reached"
     NO_GOOD_CHART = "no chart of quality above q_out"
+    ENERGY_CHECK_FAILED = "the energy left its bound"
 
 
 class GeodesicIntegrationError(RuntimeError):

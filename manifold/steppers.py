@@ -27,8 +27,12 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from .compiled import CompiledFamily
-from .precision import is_double
+from .precision import is_double, unit_roundoff
 from .solution import CallableDense, DenseOutput, TaylorDense
+from .validation import check_real
+
+#: Largest accepted tolerance: looser runs are not geodesics (``tol = 1`` gave a 21 % energy error).
+MAX_TOLERANCE = 1e-2
 
 
 @dataclass
@@ -72,6 +76,10 @@ class Stepper(ABC):
     name: str
 
     @abstractmethod
+    def relative_tolerance(self, fp_type: Any) -> float:
+        """The relative accuracy asked of each step, which scales the solver's energy check."""
+
+    @abstractmethod
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
                 switching: bool) -> Any:
         """Context manager yielding an :data:`AdvanceFunction` private to one solve."""
@@ -89,7 +97,10 @@ class TaylorStepper(Stepper):
     name = "taylor"
 
     def __init__(self, tol: float | None = None) -> None:
-        self.tol = tol
+        self.tol = None if tol is None else check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
+
+    def relative_tolerance(self, fp_type: Any) -> float:
+        return 2 * unit_roundoff(fp_type) if self.tol is None else max(self.tol, 2 * unit_roundoff(fp_type))
 
     def __repr__(self) -> str:
         return f"TaylorStepper(tol={self.tol!r})"
@@ -137,8 +148,13 @@ class ScipyStepper(Stepper):
     """
 
     def __init__(self, method: str = "DOP853", rtol: float = 1e-12, atol: float = 1e-12) -> None:
-        self.method, self.rtol, self.atol = method, rtol, atol
+        self.method = method
+        self.rtol = check_real("rtol", rtol, positive=True, at_most=MAX_TOLERANCE)
+        self.atol = check_real("atol", atol, positive=True, at_most=MAX_TOLERANCE)
         self.name = f"scipy-{method}"
+
+    def relative_tolerance(self, fp_type: Any) -> float:
+        return max(self.rtol, 2 * unit_roundoff(float))
 
     def __repr__(self) -> str:
         return f"ScipyStepper({self.method!r}, rtol={self.rtol!r}, atol={self.atol!r})"

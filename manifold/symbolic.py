@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from .chart import Chart
 from .compiled import ChartNumerics, compiled
 from .family import ChartFamily
+from .validation import real_array
 
 
 class SymbolicChart(Chart):
@@ -42,10 +43,7 @@ class SymbolicChart(Chart):
 
     def check_parameters(self, a: ArrayLike) -> NDArray:
         """``a`` as a float array of shape ``(..., dim)``; subclasses add their domain checks."""
-        a = np.asarray(a)
-        if np.iscomplexobj(a):
-            raise TypeError(f"chart parameters must be real, got complex values {a}")
-        a = np.asarray(a, dtype=float)
+        a = real_array("chart parameters", a, finite=False)
         if a.ndim == 0 or a.shape[-1] != self.dim:
             raise ValueError(f"chart parameters must have shape (..., {self.dim}), got shape {a.shape}")
         return a

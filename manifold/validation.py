@@ -12,10 +12,11 @@ import numbers
 
 import numpy as np
 
-__all__ = ["check_real"]
+__all__ = ["check_bool", "check_index", "check_real", "real_array"]
 
 
-def check_real(name: str, value: object, *, positive: bool = False, nonzero: bool = False) -> float:
+def check_real(name: str, value: object, *, positive: bool = False, nonzero: bool = False,
+               at_most: float | None = None) -> float:
     """Return ``value`` as a finite Python ``float``, or raise ``ValueError``.
 
     Accepted are real numbers: Python ``int`` and ``float``, numpy integer and
@@ -39,6 +40,8 @@ def check_real(name: str, value: object, *, positive: bool = False, nonzero: boo
         Require ``x > 0``.
     nonzero
         Require ``x != 0`` (implied by ``positive``).
+    at_most
+        Require ``x <= at_most``.
 
     Returns
     -------
@@ -51,7 +54,9 @@ def check_real(name: str, value: object, *, positive: bool = False, nonzero: boo
         If ``value`` is not a real number in the valid range.
     """
     if positive:
-        valid = "a real number in (0, inf)"
+        valid = f"a real number in (0, {'inf)' if at_most is None else f'{at_most:g}]'}"
+    elif at_most is not None:
+        valid = f"a finite real number <= {at_most:g}"
     elif nonzero:
         valid = "a finite nonzero real number"
     else:
@@ -66,6 +71,48 @@ def check_real(name: str, value: object, *, positive: bool = False, nonzero: boo
         x = float(scalar)
     except OverflowError:  # an int beyond the float range
         x = math.inf
-    if not math.isfinite(x) or (positive and x <= 0) or (nonzero and x == 0):
+    too_large = at_most is not None and x > at_most
+    if not math.isfinite(x) or (positive and x <= 0) or (nonzero and x == 0) or too_large:
         raise ValueError(f"{name} must be {valid}, got {value!r}")
     return x
+
+
+def check_bool(name: str, value: object) -> bool:
+    """Return ``value`` if it is a ``bool`` (or ``numpy.bool_``); raise ``TypeError`` naming ``name`` otherwise.
+
+    Strings such as ``'no'`` and numbers are refused: a flag that silently
+    reads ``'no'`` as true is a wrong answer.
+    """
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False, got {value!r} of type {type(value).__name__}")
+    return bool(value)
+
+
+def check_index(name: str, value: object, size: int) -> int:
+    """Return ``value`` as an ``int`` in ``[0, size)``.
+
+    Raises ``TypeError`` for anything but an integer (``bool`` included) and
+    ``ValueError`` for an integer out of range, both naming ``name`` and the range.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"{name} must be an integer in [0, {size - 1}], got {value!r} of type {type(value).__name__}")
+    if not 0 <= int(value) < size:
+        raise ValueError(f"{name} must be an integer in [0, {size - 1}], got {value!r}")
+    return int(value)
+
+
+def real_array(name: str, value: object, *, finite: bool = True) -> np.ndarray:
+    """``value`` as a float64 array; ``TypeError`` for complex, string, boolean or object input.
+
+    numpy would drop an imaginary part with only a warning, and read a string
+    array as text: both are refused here, naming ``name``.  With ``finite``,
+    ``nan`` and ``inf`` raise ``ValueError``.
+    """
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "iuf":
+        what = "complex" if arr.dtype.kind == "c" else arr.dtype.name
+        raise TypeError(f"{name} must be a real array (interleaved real coordinates), got {what} values")
+    arr = arr.astype(float)
+    if finite and not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return arr

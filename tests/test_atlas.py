@@ -112,8 +112,11 @@ def test_atlas_of_two_rods_is_two_points():
 
 def test_atlas_errors():
     atlas = SuspensionAtlas(4, 3.0)
-    with pytest.raises(IndexError, match=r"\[0, 3\]"):
+    with pytest.raises(ValueError, match=r"chart index must be an integer in \[0, 3\], got 4"):
         atlas.get_point(4, [0.0, 0.0])
+    for bad in (1.0, True, "0"):
+        with pytest.raises(TypeError, match=r"chart index must be an integer in \[0, 3\]"):
+            atlas.get_parameters(bad, atlas.get_point(0, [0.1, 0.2]))
     with pytest.raises(ValueError, match="switch_threshold"):
         SuspensionAtlas(4, 3.0, switch_threshold=1.5)
     with pytest.raises(ValueError, match="at least one chart"):
@@ -161,3 +164,28 @@ def test_a_point_outside_every_chart_is_an_error():
     p = SuspensionChart(2, 1.5, sheet=-1).get_point(np.zeros(0))
     with pytest.raises(ValueError, match="lies in no chart"):
         atlas.best_chart(p)
+
+
+@pytest.mark.parametrize("n", [3, 4, 5, 6])
+@pytest.mark.parametrize("gap", [1e-12, 1e-9, 1e-6, 1e-3])
+def test_best_chart_is_well_conditioned_at_folds(n, gap):
+    """Near L = n - 2 the best chart stays well conditioned: the fold terms of the quality see the fold
+    of the first two rods (cond(J) ~ 1/|p_2|) and the folded triple (sigma_min ~ gap^(1/4)), which
+    min cos(phi_m) alone scored 1.0 (issue 8: cond(J) of the chosen chart reached 1/gap)."""
+    L = n - 2 + gap
+    atlas = SuspensionAtlas(n, L)
+    rng = np.random.default_rng(n)
+    params = [np.append(np.zeros(n - 3), t) for t in (0.0, np.pi, HALF_PI, -HALF_PI)]  # folds, folded triples
+    params += [np.append(rng.uniform(-1.5, 1.5, n - 3), rng.uniform(-np.pi, np.pi)) for _ in range(12)]
+    for order in rod_orders_sample(n, rng):
+        chart = SuspensionChart(n, L, order)
+        for a in params:
+            p = chart.get_point(a)
+            i, a_best = atlas.best_chart(p)
+            s = np.linalg.svd(atlas.charts[i].jacobian(a_best), compute_uv=False)
+            assert atlas.qualities(p).max() >= atlas.quality_floor
+            assert s[-1] / s[0] >= 0.05, (order, a, i, s)  # measured >= 0.064 over n <= 8
+
+
+def rod_orders_sample(n: int, rng: np.random.Generator) -> list:
+    return [np.arange(n), rng.permutation(n), rng.permutation(n)]

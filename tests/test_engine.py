@@ -78,20 +78,26 @@ def test_families_are_compiled_once_per_key():
 
 
 def test_chart_quality_is_the_compiled_quality_expression():
-    """The numpy quality of a chart is the minimum of the family's quality expressions (one formula)."""
+    """The numpy quality of a chart is the minimum of the family's quality expressions (one formula):
+    here against the same formula run on numpy (cosines of the latitudes and the two fold terms)."""
+    from charts import suspension_formula
+    from manifold.backends import NUMPY
+
     chart = SuspensionChart(5, 3.4)
     rng = np.random.default_rng(2)
     a = np.column_stack([rng.uniform(-1.5, 1.5, (50, 2)), rng.uniform(-3, 3, 50)])
-    assert np.array_equal(chart.quality(a), np.min(np.cos(a[:, :2]), axis=-1)) or \
-        np.abs(chart.quality(a) - np.min(np.cos(a[:, :2]), axis=-1)).max() <= 1e-15
+    fold = suspension_formula.fold_qualities([a[:, k] for k in range(3)], 3.4, NUMPY)
+    expected = np.min(np.column_stack([np.cos(a[:, :2])] + fold), axis=-1)
+    assert np.abs(chart.quality(a) - expected).max() <= 1e-15
 
 
 # -- one solution type ---------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def chain_run():
+    """Chart 0 at latitude 1.2 heading for its pole: a switch at t = 0.11 (chart parameters, chart=0)."""
     chain = Chain(4, 2.9)
-    p0, v0 = _chain_start(chain, [1.2, 0.3], [1.0, 0.2])
-    return chain, p0, v0, solve_chart_exp_ode(chain.metric(), p0, v0, 12.0)
+    a, c = np.array([1.2, 0.3]), np.array([1.0, 0.2])
+    return chain, a, c, solve_chart_exp_ode(chain.metric(), a, c, 12.0, chart=0)
 
 
 def test_vectorised_evaluation_equals_pointwise(chain_run):
@@ -117,9 +123,9 @@ def test_compact_dense_output_holds_only_the_taylor_coefficients(chain_run):
 
 
 def test_grid_output_without_dense_storage(chain_run):
-    chain, p0, v0, dense = chain_run
+    chain, a, c, dense = chain_run
     ts = np.linspace(0, 12, 25)
-    grid = solve_chart_exp_ode(chain.metric(), p0, v0, 12.0, dense=False, t_eval=ts)
+    grid = solve_chart_exp_ode(chain.metric(), a, c, 12.0, dense=False, t_eval=ts, chart=0)
     assert grid.dense_nbytes == 0
     p, v = dense(ts)
     assert np.abs(grid.points - p).max() <= 1e-15 and np.abs(grid.velocities - v).max() <= 1e-15
@@ -139,12 +145,12 @@ def test_backward_grid_and_bad_grids():
 
 
 def test_failure_is_one_exception_or_one_status(chain_run):
-    chain, p0, v0, _ = chain_run
+    chain, a, c, _ = chain_run
     with pytest.raises(GeodesicIntegrationError, match="max_switches") as err:
-        solve_chart_exp_ode(chain.metric(), p0, v0, 40.0, max_switches=1)
+        solve_chart_exp_ode(chain.metric(), a, c, 40.0, max_switches=1, chart=0)
     partial = err.value.solution
     assert partial.status is SolveStatus.MAX_SWITCHES and partial.n_switches == 1
-    quiet = solve_chart_exp_ode(chain.metric(), p0, v0, 40.0, max_switches=1, throw=False)
+    quiet = solve_chart_exp_ode(chain.metric(), a, c, 40.0, max_switches=1, throw=False, chart=0)
     assert quiet.status is SolveStatus.MAX_SWITCHES and not quiet.success
     assert float(quiet.t_reached) == float(partial.t_reached) < 40.0
     assert np.abs(quiet(quiet.t_reached)[0] - partial.end_state()[0]).max() <= 1e-14  # polynomial vs state

@@ -21,7 +21,7 @@ def start(chain: Chain, a, c, chart=0):
     return atlas.get_point(chart, np.asarray(a, float)), atlas.charts[chart].tangent_vector(np.asarray(a, float), np.asarray(c, float))
 
 
-@pytest.mark.parametrize("n, L, T", [(4, 2.6, 700.0), (5, 3.3, 650.0), (6, 5.5, 150.0)])
+@pytest.mark.parametrize("n, L, T", [(4, 2.6, 800.0), (5, 3.3, 650.0), (6, 5.5, 150.0)])
 def test_energy_is_conserved_across_a_hundred_switches(n, L, T):
     chain = Chain(n, L, rod_densities=0.2)
     rng = np.random.default_rng(n)
@@ -112,8 +112,7 @@ def test_real128_energy_error():
 
 def test_long_double_runs_end_to_end():
     chain = Chain(4, 2.7)
-    p0, v0 = start(chain, [1.2, 0.3], [1.0, 0.2])
-    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 10.0, fp_type=np.longdouble)
+    sol = solve_chart_exp_ode(chain.metric(), [1.2, 0.3], [1.0, 0.2], 10.0, fp_type=np.longdouble, chart=0)
     assert sol.n_switches >= 1
     assert sol.relative_energy_error <= 1e-17
     p, _ = sol(5.0)
@@ -151,7 +150,7 @@ class TestBadInput:
     @pytest.mark.parametrize("T", [np.inf, np.nan, -np.inf])
     def test_t_final_not_finite(self, T):
         p0, v0 = self._pv()
-        with pytest.raises(ValueError, match="t_final must be finite"):
+        with pytest.raises(ValueError, match="t_final must be a finite real number"):
             solve_chart_exp_ode(self.chain.metric(), p0, v0, T)
 
     def test_non_tangent_velocity(self):
@@ -199,7 +198,7 @@ def test_chart_solution_matches_ambient_reference(n, L, where):
     v0 /= np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))  # unit speed
     T = 10.0
     ts = np.linspace(0, T, 21)
-    sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, q_out=0.45)  # switches often
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, q_out=0.55)  # switches often (the floor is 0.6)
     ref = integrate_ambient(chain, chain.from_point(p0), chain.from_point(v0), T, t_eval=ts, rtol=1e-13, atol=1e-13)
     assert sol.n_switches >= (1 if where == "generic" else 0)
     h_chart = chain.from_point(sol(ts)[0])
@@ -238,9 +237,9 @@ def test_forced_start_chart_below_threshold_switches_at_once():
 @pytest.mark.parametrize("method, rtol, tol", [("DOP853", 1e-12, 1e-9), ("RK45", 1e-10, 1e-6), ("Radau", 1e-8, 1e-5)])
 def test_scipy_driver_follows_the_same_geodesic(method, rtol, tol):
     chain = Chain(4, 2.9)
-    p0, v0 = start(chain, [1.2, 0.3], [1.0, 0.2])
-    ours = solve_chart_exp_ode(chain.metric(), p0, v0, 8.0)
-    theirs = solve_chart_exp_ode(chain.metric(), p0, v0, 8.0, stepper=ScipyStepper(method, rtol=rtol, atol=rtol))
+    a, c = [1.2, 0.3], [1.0, 0.2]  # chart 0 heading for its pole: a switch at t = 0.11
+    ours = solve_chart_exp_ode(chain.metric(), a, c, 8.0, chart=0)
+    theirs = solve_chart_exp_ode(chain.metric(), a, c, 8.0, chart=0, stepper=ScipyStepper(method, rtol=rtol, atol=rtol))
     assert theirs.n_switches == ours.n_switches >= 1
     ts = np.linspace(0, 8, 17)
     assert np.abs(theirs(ts)[0] - ours(ts)[0]).max() <= tol

@@ -136,7 +136,7 @@ def test_a_run_through_a_pole_fails_there(c_pole):
     k = np.searchsorted(sol.t, tau - 0.1)
     assert np.max(sol.relative_energy_error[: k + 1]) < 1e-8
     p_lib, _ = lib(sol.t[k])
-    assert np.max(np.abs(Chain.to_point(sol.hinges[k]) - p_lib)) < 1e-7
+    assert np.max(np.abs(Chain(4, L).to_point(sol.hinges[k]) - p_lib)) < 1e-7
 
 
 def test_a_near_miss_of_a_pole_fails_or_loses_energy():

@@ -49,7 +49,7 @@ from numpy.typing import ArrayLike, NDArray
 from charts.chain_geometry import to_complex
 
 from linkage import Chain
-from linkage.ambient import start_state
+from linkage.constraints import start_state
 from linkage.constraints import HingeConstraints
 from manifold.validation import check_real
 

@@ -1,0 +1,124 @@
+"""Strict inputs: every bad argument gets a clear error that names it (issue 8, section 3)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from charts import SuspensionAtlas
+from linkage import Chain, ConfigurationError
+from linkage.ambient import integrate_ambient
+from linkage.motion import free_motion
+from manifold import ScipyStepper, TaylorStepper, solve_chart_exp_ode
+
+from .conftest import unit_speed_start
+
+
+@pytest.fixture(scope="module")
+def start():
+    chain = Chain(4, 2.9)
+    h0, v0 = unit_speed_start(chain, [1.2, 0.3], [1.0, 0.2])
+    return chain, h0, v0
+
+
+@pytest.mark.parametrize("tol", [1.0, 0.0, -1e-9, np.nan, np.inf, "1e-10", True])
+def test_tolerances_outside_their_range_are_refused(start, tol):
+    chain, h0, v0 = start
+    with pytest.raises(ValueError, match=r"tol must be a real number in \(0, 0.01\]"):
+        free_motion(chain, h0, v0, 1.0, tol=tol)
+    with pytest.raises(ValueError, match=r"tol must be a real number in \(0, 0.01\]"):
+        TaylorStepper(tol)
+    with pytest.raises(ValueError, match=r"rtol must be a real number"):
+        ScipyStepper("DOP853", rtol=tol)
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"tangent_tol": np.nan}, "tangent_tol"), ({"tangent_tol": np.inf}, "tangent_tol"),
+    ({"max_switches": 0}, "max_switches"), ({"max_switches": 1.5}, "max_switches"),
+    ({"max_switches": True}, "max_switches"), ({"q_out": 0.9}, r"q_out must lie in \(0, 0.6\)"),
+    ({"q_out": "0.2"}, "q_out"),
+])
+def test_solver_options_are_checked_before_the_run(start, kw, match):
+    chain, h0, v0 = start
+    with pytest.raises(ValueError, match=match):
+        free_motion(chain, h0, v0, 1.0, **kw)
+
+
+@pytest.mark.parametrize("kw, error", [({"switching": "no"}, TypeError), ({"dense": 1}, TypeError),
+                                       ({"chart": True}, TypeError), ({"chart": 4}, ValueError),
+                                       ({"throw": None}, TypeError)])
+def test_flags_and_chart_indices_must_have_their_type(start, kw, error):
+    chain, h0, v0 = start
+    with pytest.raises(error, match=list(kw)[0]):
+        solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0), 1.0, **kw)
+
+
+def test_strings_are_not_numbers(start):
+    chain, h0, v0 = start
+    with pytest.raises(ValueError, match=r"L must be a finite real number with 2 < L < 4"):
+        Chain(4, L="2.5")
+    with pytest.raises(ValueError, match="t_final"):
+        free_motion(chain, h0, v0, "1")
+    with pytest.raises(ValueError, match="t_final"):
+        solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0), "1")
+
+
+def test_a_zero_dimensional_array_is_a_time(start):
+    chain, h0, v0 = start
+    assert free_motion(chain, h0, v0, np.array(0.5)).success
+
+
+@pytest.mark.parametrize("rtol", [np.nan, -1e-9, np.inf, 0.0])
+def test_ambient_tolerances_are_checked(start, rtol):
+    chain, h0, v0 = start
+    with pytest.raises(ValueError, match="rtol"):
+        integrate_ambient(chain, h0, v0, 1.0, rtol=rtol)
+    with pytest.raises(ValueError, match="atol"):
+        integrate_ambient(chain, h0, v0, 1.0, atol=rtol)
+
+
+def test_complex_points_and_parameters_are_refused():
+    atlas = SuspensionAtlas(4, 2.9)
+    a = np.array([0.3, 0.4])
+    p = atlas.get_point(0, a)
+    with pytest.raises(TypeError, match="p must be a real array"):
+        atlas.get_chart_index(p + 0.3j)
+    with pytest.raises(TypeError, match="chart parameters must be a real array"):
+        atlas.get_point(0, a + 1j)
+    with pytest.raises(TypeError, match="p0 must be a real array"):
+        solve_chart_exp_ode(Chain(4, 2.9).metric(), p + 0j, np.zeros(6), 1.0)
+
+
+def test_hinges_and_points_are_not_confused(start):
+    chain, h0, _ = start
+    with pytest.raises(ConfigurationError, match="to_point takes complex hinges"):
+        chain.to_point(chain.to_point(h0))
+    with pytest.raises(ConfigurationError, match="from_point takes real points"):
+        chain.from_point(h0)
+    with pytest.raises(ConfigurationError, match="complex"):
+        free_motion(chain, chain.to_point(h0), np.zeros(6), 1.0)
+
+
+def test_a_batch_of_points_gets_one_chart_per_point():
+    atlas = SuspensionAtlas(5, 3.3)
+    rng = np.random.default_rng(4)
+    a = np.column_stack([rng.uniform(-1.5, 1.5, (7, 2)), rng.uniform(-3, 3, 7)])
+    pts = atlas.get_point(2, a)
+    idx, params = atlas.best_chart(pts)
+    assert idx.shape == (7,) and params.shape == (7, 3)
+    for k in range(7):
+        assert idx[k] == atlas.get_chart_index(pts[k])
+        assert np.abs(atlas.get_point(int(idx[k]), params[k]) - pts[k]).max() <= 1e-12
+    assert np.array_equal(atlas.get_chart_index(pts.reshape(7, 1, 8)), idx.reshape(7, 1))
+
+
+def test_errors_name_the_public_arguments(start):
+    chain, h0, v0 = start
+    with pytest.raises(ValueError, match="velocity0 is not tangent"):
+        free_motion(chain, h0, v0 + 0.1, 1.0)
+    with pytest.raises(ConfigurationError, match="does not close"):
+        free_motion(chain, h0 * 1.01, v0, 1.0)
+    with pytest.raises(ValueError, match="velocity0 gives a non-finite kinetic energy"):
+        free_motion(chain, h0, v0 * 1e200, 1.0)
+    with pytest.raises(ValueError, match="v0 gives a non-finite kinetic energy"):
+        solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0) * 1e200, 1.0)
