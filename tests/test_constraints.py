@@ -91,6 +91,8 @@ def test_projections_land_on_the_constraints_and_the_tangent_space(case, spread)
     assert np.max(np.abs(G @ vp)) < 1e-12 * max(1.0, np.linalg.norm(v_off))
     # the velocity projection is K-orthogonal (the removed part is a constraint force) and idempotent
     assert k_orthogonal_to_tangent_space(sys, G, v_off - vp) < 1e-10
-    np.testing.assert_allclose(sys.project_velocity(xp, vp), vp, rtol=0, atol=1e-14 * np.linalg.norm(v_off))
+    # to the rounding floor of the multiplier system S = G K^-1 G^T (ill-conditioned near a fold, L -> n-2)
+    floor = 10 * np.finfo(float).eps * np.linalg.cond(G @ sys.K_inv @ G.T)
+    np.testing.assert_allclose(sys.project_velocity(xp, vp), vp, rtol=0, atol=max(1e-14, floor) * np.linalg.norm(v_off))
     # a point on the constraints stays there (to rounding)
     np.testing.assert_allclose(sys.project_position(xp), xp, rtol=0, atol=1e-14)
