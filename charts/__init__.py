@@ -3,6 +3,13 @@
 May import ``manifold``, numpy and heyoka; never ``linkage``.  See ``charts/README.md``.
 """
 
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("linkage-manifolds")
+except PackageNotFoundError:  # run from a source tree that was not installed
+    __version__ = "0+unknown"
+
 from .chain_geometry import validate_chain
 from .suspension import SuspensionAtlas, SuspensionChart, cyclic_orders
 

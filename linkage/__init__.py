@@ -9,6 +9,13 @@ heyoka or matplotlib through this package.
 """
 
 import importlib
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("linkage-manifolds")
+except PackageNotFoundError:  # run from a source tree that was not installed
+    __version__ = "0+unknown"
+
 
 _EXPORTS = {
     "Chain": ".chain",

@@ -108,14 +108,19 @@ def _figure(chain: Chain, motion, ts: np.ndarray, hinges: np.ndarray, distance: 
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="linkage-demo", description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=4, help="number of rods (default 4)")
     parser.add_argument("--L", type=float, default=None, help="pin distance, n-2 < L < n (default n - 1.4)")
     parser.add_argument("--T", type=float, default=200.0, help="final time (default 200)")
-    parser.add_argument("--precision", choices=sorted(PRECISIONS), default="float64")
+    parser.add_argument("--precision", choices=sorted(PRECISIONS), default="float64",
+                        help="floating type of the integration (default float64)")
     parser.add_argument("--out", default="demo.png", help="PNG file to write (default demo.png)")
     args = parser.parse_args(argv)
     L = args.n - 1.4 if args.L is None else args.L
+    try:
+        Chain(args.n, L)
+    except ValueError as e:
+        parser.error(str(e))
     print(f"free motion of {args.n} unit rods pinned at 0 and L = {L}, from an exact pole of chart 0, "
           f"T = {args.T}, {args.precision}")
     s = run(args.n, L, args.T, args.precision, args.out)

@@ -4,6 +4,13 @@ Knows nothing of linkages: it may import numpy, scipy and heyoka, never
 ``charts`` or ``linkage``.  See ``manifold/README.md``.
 """
 
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("linkage-manifolds")
+except PackageNotFoundError:  # run from a source tree that was not installed
+    __version__ = "0+unknown"
+
 from .atlas import Atlas
 from .chart import Chart, ChartDomainError
 from .compiled import ChartNumerics, CompiledFamily, compiled

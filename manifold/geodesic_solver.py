@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .compiled import compiled
 from .metric import InducedMetric
-from .precision import as_fp, unit_roundoff
+from .precision import as_fp, resolve_fp_type
 from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import Stepper, TaylorStepper
 from .symbolic import SymbolicChart
@@ -84,7 +84,8 @@ def solve_chart_exp_ode(
         (default, heyoka) or :class:`~manifold.steppers.ScipyStepper` (comparisons).
     fp_type
         ``float`` (default), ``numpy.longdouble``, ``heyoka.real128`` or
-        :class:`manifold.precision.MultiPrecision` ``(bits)`` (heyoka's ``real``).
+        :class:`manifold.precision.MultiPrecision` ``(bits)`` (heyoka's ``real``);
+        or by name: ``"float64"``, ``"longdouble"``, ``"real128"``, ``"mp<bits>"``.
         The whole run -- integrator, transition maps, energies, ``sol(t)`` --
         is in this type.
     tol
@@ -123,6 +124,7 @@ def solve_chart_exp_ode(
     GeodesicSolution
     """
     wall0 = time.perf_counter()
+    fp_type = resolve_fp_type(fp_type)
     switching, project_velocity = check_bool("switching", switching), check_bool("project_velocity", project_velocity)
     dense, throw = check_bool("dense", dense), check_bool("throw", throw)
     if isinstance(max_switches, (bool, np.bool_)) or not isinstance(max_switches, numbers.Integral) or max_switches < 1:
@@ -197,7 +199,6 @@ def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_
     (-2) when ``switching`` is off.
     """
     atlas = metric.atlas
-    unit_roundoff(fp_type)  # raises on an unknown fp_type
     if atlas.dim == 0:
         raise ValueError("a 0-dimensional manifold has no geodesic motion")
     if not all(isinstance(ch, SymbolicChart) for ch in atlas.charts):

@@ -66,6 +66,27 @@ def event_fp_kwargs(fp_type) -> dict:
     return {"fp_type": heyoka_fp_kwargs(fp_type)["fp_type"]}
 
 
+#: Names accepted wherever an ``fp_type`` is (besides the types themselves and ``"mp<bits>"``).
+FP_NAMES = {"float64": float, "longdouble": np.longdouble, "real128": getattr(hy, "real128", None)}
+
+
+def resolve_fp_type(fp_type):
+    """The floating type named by ``fp_type``: a type itself, or ``"float64"``, ``"longdouble"``,
+    ``"real128"``, ``"mp<bits>"`` (heyoka's ``real`` at ``bits`` bits, 24..1000).
+
+    Raises ``ValueError`` listing the names for an unknown string, ``TypeError`` for other objects.
+    """
+    if isinstance(fp_type, str):
+        if fp_type in FP_NAMES and FP_NAMES[fp_type] is not None:
+            return FP_NAMES[fp_type]
+        if fp_type.startswith("mp") and fp_type[2:].isdigit():
+            return MultiPrecision(int(fp_type[2:]))
+        raise ValueError(f"fp_type must be one of 'float64', 'longdouble', 'real128' or 'mp<bits>' "
+                         f"(e.g. 'mp256'), got {fp_type!r}")
+    unit_roundoff(fp_type)  # raises TypeError for anything that is not a supported type
+    return fp_type
+
+
 def unit_roundoff(fp_type) -> float:
     """``2**-p`` for a ``p``-bit significand: 2**-53 (float), 2**-64 (x86 long double), 2**-113, 2**-bits."""
     if isinstance(fp_type, MultiPrecision):
