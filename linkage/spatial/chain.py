@@ -388,17 +388,19 @@ class RevoluteChain:
             numeric_axes = [h.map(to_mpc) for h in self.axes]
             for t0, factor in curve.bond_candidate_factors():
                 for place in curve.places(t0):
-                    if not self._vanishes_at(place, numeric_axes):
-                        continue
+                    # With exact data the exact place decides, before any numeric screen: a
+                    # thresholded test must never be able to drop a bond that exact
+                    # arithmetic would find (issue 11, review finding A).
                     exact_place = curve.exact_place(place, factor) if exact else None
                     if exact_place is not None:
                         place = exact_place
                         field = place.joints[0][1].field
                         axes = [h.map(field.convert) for h in self.axes]
-                        if not self._vanishes_at(place, axes):
-                            continue
                     else:
+                        place = _normalized_place(place)
                         axes = numeric_axes
+                    if not self._vanishes_at(place, axes):
+                        continue
                     dist = {}
                     for i in range(1, self.n):
                         f = self._product_series(place, axes, i, i)
@@ -414,6 +416,9 @@ class RevoluteChain:
         """``F_0n`` vanishes at the place: all coordinates have order >= 1.
 
         Only the ``u^0`` coefficients matter, so the joints are truncated to ``O(u)``.
+        On a numeric place the joint pairs must be normalised first
+        (:func:`_normalized_place`): the zero threshold is relative to a scale of at
+        least 1, so it is scale-invariant only for terms of modulus about 1.
         """
         first = Place(place.t0, place.branch, tuple((a.truncated(1), b.truncated(1)) for a, b in place.joints))
         try:
@@ -593,6 +598,27 @@ def _bond_order(b: Bond) -> tuple:
     finite = [complex(0) if z == INF else z for z in b.joints]
     pair = [(z == INF, round(f.real, 9), abs(round(f.imag, 9))) for z, f in zip(b.joints, finite)]
     return (sorted(b.connection_numbers.items()), pair, [round(f.imag, 9) for f in finite])
+
+
+def _normalized_place(place: Place) -> Place:
+    """The place with each joint pair ``(num_k, den_k)`` divided by ``max(|num_k(0)|, |den_k(0)|)``.
+
+    ``F_ij`` is homogeneous of degree one in each pair, so orders (bonds, local
+    distances) do not change; but the 50-digit zero threshold (``1e-30`` times a
+    scale of at least 1) is then applied to terms of modulus at most about 1.
+    Unnormalised pairs reach ``1e23`` for ordinary rational axes, and rounding
+    residuals of ``1e6`` in the product would count as nonzero: bonds were lost.
+    """
+    if place.exact:
+        return place
+    joints = []
+    for num, den in place.joints:
+        scale = max(abs(num.coefficient(0)), abs(den.coefficient(0)))
+        if scale == 0:
+            raise PrecisionExhausted(f"joint pair vanishes at the place t = {place.t0}")
+        inv = 1 / scale
+        joints.append((num * inv, den * inv))
+    return Place(place.t0, place.branch, tuple(joints))
 
 
 def _min_order(h: DualQuaternion) -> int:
