@@ -280,7 +280,10 @@ class RevoluteChain:
         Raises
         ------
         ValueError
-            If the chain is rigid (no curve) or the curve is reducible.
+            If the chain is rigid (no curve) or the curve is reducible, including
+            a moving component on which joint 1 or joint n is fixed (only
+            components with such a joint at ``+-I``, where the product has zero
+            norm, are dropped).
         NotImplementedError
             For ``n > 4`` without a given curve, or float axes.
         """
@@ -311,9 +314,31 @@ class RevoluteChain:
         p = equations[0]
         for e in equations[1:]:
             p = sympy.gcd(p, e)
-        # drop factors free of t_1 or of t (fixed joints: not a component of a mobile chain)
         _, factors = sympy.factor_list(p, x, T)
         comps = [f for f, _ in factors if sympy.degree(f, x) > 0 and sympy.degree(f, T) > 0]
+        # A factor free of t or of t_1 is a component on which joint 1 or joint n is
+        # fixed.  Only t_k = +-I (a factor of t_k^2 + 1) is spurious: there the product
+        # has zero norm, it cannot be real and nonzero.  Any other such factor is a
+        # component along which the other joints can move (e.g. a folded kite,
+        # t_1 = -1): dropping it silently would report the bonds and distances of
+        # part of the curve as those of the linkage (issue 11, review finding B).
+        fixed = []
+        for f, _ in factors:
+            v = T if sympy.degree(f, x) == 0 else (x if sympy.degree(f, T) == 0 else None)
+            if v is not None and sympy.rem(v**2 + 1, f, v) != 0:
+                fixed.append(f)
+        if fixed:
+            t_1 = sympy.Symbol("t_1")
+            described = ", ".join(
+                f"{f.subs(x, t_1)} = 0 (joint {1 if sympy.degree(f, T) == 0 else self.n} fixed)" for f in fixed
+            )
+            raise ValueError(
+                f"the configuration curve (t = t_{self.n}) is reducible: besides "
+                f"{[str(c.subs(x, t_1)) for c in comps]} "
+                f"it has component(s) {described} along which the other joints can move; bonds and "
+                "distances of the whole linkage need every component, and a fixed joint cannot serve as "
+                "the parameter t = t_n.  Pass curve= with one component to analyse that component alone"
+            )
         if not comps:
             raise ValueError("the chain is rigid: the closure equations have no common curve component")
         if len(comps) > 1:
