@@ -529,7 +529,9 @@ class RevoluteChain:
 
         The returned function takes the curve parameter ``t`` and ``branch`` (sign
         of ``w``) and gives the dual quaternion ``F_ij``, replaced by its limit
-        direction (the leading coefficient along the curve) where it vanishes.
+        direction (the leading coefficient along the curve) where it vanishes; the
+        result is determined up to a nonzero scalar (joint pairs are scaled to
+        modulus 1 before the leading order is read).
         Links are 1-based; for ``i > j`` the product runs over ``i+1, ..., n, 1, ..., j``.
         """
         self._check_link(i, "i")
@@ -543,6 +545,7 @@ class RevoluteChain:
             with mpmath.workdps(WORKING_DIGITS):
                 places = curve.places(t)
                 place = places[0] if len(places) == 1 else places[0 if branch == 1 else 1]
+                place = _normalized_place(place)  # scale-invariant choice of the leading order
                 zero = Series.exact([0])
                 r = DualQuaternion.scalar(Series.exact([1]), zero)
                 for k in order:
