@@ -177,6 +177,32 @@ def test_a_rigid_chain_is_refused():
         RevoluteChain(axes).configuration_curve()
 
 
+def test_a_moving_component_with_a_fixed_joint_is_not_dropped_silently():
+    """Planar kite, pivots (0,0), (2,0), (3,3), (0,2): |p1p2| = |p4p1| = 2, |p2p3| = |p3p4| = sqrt 10.
+
+    Besides the ordinary motion it folds: link p4p1 onto p1p2 (joint 1 fixed at
+    t_1 = -1), after which p2 = p4 and joints 2 and 4 turn together.  That
+    component moves, so it must not be discarded as a 'fixed joint' leaving
+    bonds and distances of half the curve (issue 11, review finding B).
+    """
+    pivots = [[0, 0, 0], [2, 0, 0], [3, 3, 0], [0, 2, 0]]
+    ch = RevoluteChain([DualQuaternion.from_line(p, [0, 0, 1]) for p in pivots])
+    # independent check that t_1 = -1 is a moving component: closure for several t_4
+    a, b = sympy.symbols("a b")
+    moving = set()
+    for t4 in (0, 1, R(1, 2)):
+        prod = ch.closure([-1, a, b, t4]).map(sympy.expand)
+        for sol in sympy.solve(list(prod)[1:], [a, b], dict=True):
+            scalar = sympy.expand(ch.closure([-1, sol[a], sol[b], t4])[0])
+            assert scalar != 0
+            moving.add((sol[a], t4))
+    assert len(moving) == 3
+    with pytest.raises(ValueError, match=r"reducible.*t_1 \+ 1 = 0 \(joint 1 fixed\)"):
+        ch.configuration_curve()
+    with pytest.raises(ValueError, match="reducible"):
+        ch.bonds()
+
+
 # --- bonds ----------------------------------------------------------------------------
 
 

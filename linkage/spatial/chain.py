@@ -280,7 +280,10 @@ class RevoluteChain:
         Raises
         ------
         ValueError
-            If the chain is rigid (no curve) or the curve is reducible.
+            If the chain is rigid (no curve) or the curve is reducible, including
+            a moving component on which joint 1 or joint n is fixed (only
+            components with such a joint at ``+-I``, where the product has zero
+            norm, are dropped).
         NotImplementedError
             For ``n > 4`` without a given curve, or float axes.
         """
@@ -311,9 +314,31 @@ class RevoluteChain:
         p = equations[0]
         for e in equations[1:]:
             p = sympy.gcd(p, e)
-        # drop factors free of t_1 or of t (fixed joints: not a component of a mobile chain)
         _, factors = sympy.factor_list(p, x, T)
         comps = [f for f, _ in factors if sympy.degree(f, x) > 0 and sympy.degree(f, T) > 0]
+        # A factor free of t or of t_1 is a component on which joint 1 or joint n is
+        # fixed.  Only t_k = +-I (a factor of t_k^2 + 1) is spurious: there the product
+        # has zero norm, it cannot be real and nonzero.  Any other such factor is a
+        # component along which the other joints can move (e.g. a folded kite,
+        # t_1 = -1): dropping it silently would report the bonds and distances of
+        # part of the curve as those of the linkage (issue 11, review finding B).
+        fixed = []
+        for f, _ in factors:
+            v = T if sympy.degree(f, x) == 0 else (x if sympy.degree(f, T) == 0 else None)
+            if v is not None and sympy.rem(v**2 + 1, f, v) != 0:
+                fixed.append(f)
+        if fixed:
+            t_1 = sympy.Symbol("t_1")
+            described = ", ".join(
+                f"{f.subs(x, t_1)} = 0 (joint {1 if sympy.degree(f, T) == 0 else self.n} fixed)" for f in fixed
+            )
+            raise ValueError(
+                f"the configuration curve (t = t_{self.n}) is reducible: besides "
+                f"{[str(c.subs(x, t_1)) for c in comps]} "
+                f"it has component(s) {described} along which the other joints can move; bonds and "
+                "distances of the whole linkage need every component, and a fixed joint cannot serve as "
+                "the parameter t = t_n.  Pass curve= with one component to analyse that component alone"
+            )
         if not comps:
             raise ValueError("the chain is rigid: the closure equations have no common curve component")
         if len(comps) > 1:
@@ -388,17 +413,19 @@ class RevoluteChain:
             numeric_axes = [h.map(to_mpc) for h in self.axes]
             for t0, factor in curve.bond_candidate_factors():
                 for place in curve.places(t0):
-                    if not self._vanishes_at(place, numeric_axes):
-                        continue
+                    # With exact data the exact place decides, before any numeric screen: a
+                    # thresholded test must never be able to drop a bond that exact
+                    # arithmetic would find (issue 11, review finding A).
                     exact_place = curve.exact_place(place, factor) if exact else None
                     if exact_place is not None:
                         place = exact_place
                         field = place.joints[0][1].field
                         axes = [h.map(field.convert) for h in self.axes]
-                        if not self._vanishes_at(place, axes):
-                            continue
                     else:
+                        place = _normalized_place(place)
                         axes = numeric_axes
+                    if not self._vanishes_at(place, axes):
+                        continue
                     dist = {}
                     for i in range(1, self.n):
                         f = self._product_series(place, axes, i, i)
@@ -414,6 +441,9 @@ class RevoluteChain:
         """``F_0n`` vanishes at the place: all coordinates have order >= 1.
 
         Only the ``u^0`` coefficients matter, so the joints are truncated to ``O(u)``.
+        On a numeric place the joint pairs must be normalised first
+        (:func:`_normalized_place`): the zero threshold is relative to a scale of at
+        least 1, so it is scale-invariant only for terms of modulus about 1.
         """
         first = Place(place.t0, place.branch, tuple((a.truncated(1), b.truncated(1)) for a, b in place.joints))
         try:
@@ -499,7 +529,9 @@ class RevoluteChain:
 
         The returned function takes the curve parameter ``t`` and ``branch`` (sign
         of ``w``) and gives the dual quaternion ``F_ij``, replaced by its limit
-        direction (the leading coefficient along the curve) where it vanishes.
+        direction (the leading coefficient along the curve) where it vanishes; the
+        result is determined up to a nonzero scalar (joint pairs are scaled to
+        modulus 1 before the leading order is read).
         Links are 1-based; for ``i > j`` the product runs over ``i+1, ..., n, 1, ..., j``.
         """
         self._check_link(i, "i")
@@ -513,6 +545,7 @@ class RevoluteChain:
             with mpmath.workdps(WORKING_DIGITS):
                 places = curve.places(t)
                 place = places[0] if len(places) == 1 else places[0 if branch == 1 else 1]
+                place = _normalized_place(place)  # scale-invariant choice of the leading order
                 zero = Series.exact([0])
                 r = DualQuaternion.scalar(Series.exact([1]), zero)
                 for k in order:
@@ -593,6 +626,27 @@ def _bond_order(b: Bond) -> tuple:
     finite = [complex(0) if z == INF else z for z in b.joints]
     pair = [(z == INF, round(f.real, 9), abs(round(f.imag, 9))) for z, f in zip(b.joints, finite)]
     return (sorted(b.connection_numbers.items()), pair, [round(f.imag, 9) for f in finite])
+
+
+def _normalized_place(place: Place) -> Place:
+    """The place with each joint pair ``(num_k, den_k)`` divided by ``max(|num_k(0)|, |den_k(0)|)``.
+
+    ``F_ij`` is homogeneous of degree one in each pair, so orders (bonds, local
+    distances) do not change; but the 50-digit zero threshold (``1e-30`` times a
+    scale of at least 1) is then applied to terms of modulus at most about 1.
+    Unnormalised pairs reach ``1e23`` for ordinary rational axes, and rounding
+    residuals of ``1e6`` in the product would count as nonzero: bonds were lost.
+    """
+    if place.exact:
+        return place
+    joints = []
+    for num, den in place.joints:
+        scale = max(abs(num.coefficient(0)), abs(den.coefficient(0)))
+        if scale == 0:
+            raise PrecisionExhausted(f"joint pair vanishes at the place t = {place.t0}")
+        inv = 1 / scale
+        joints.append((num * inv, den * inv))
+    return Place(place.t0, place.branch, tuple(joints))
 
 
 def _min_order(h: DualQuaternion) -> int:
