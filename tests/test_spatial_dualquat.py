@@ -147,3 +147,13 @@ def test_inverse():
 def test_wrong_length_is_refused(bad):
     with pytest.raises(ValueError, match="8 entries"):
         DualQuaternion(bad)
+
+
+def test_lines_need_a_unit_direction_and_an_orthogonal_moment():
+    """A zero or non-unit direction is not a line (h^2 != -1): refused where the line is built."""
+    with pytest.raises(ValueError, match="must be a unit vector"):
+        DualQuaternion.from_line((0, 0, 0), (0, 0, 0))
+    with pytest.raises(ValueError, match="must be a unit vector"):
+        DualQuaternion.from_line((1, 2, 3), (0, 0, 2.0))
+    with pytest.raises(ValueError, match="orthogonal"):
+        DualQuaternion.from_plucker((1, 0, 0), (1, 0, 0))

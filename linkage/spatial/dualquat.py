@@ -41,6 +41,21 @@ def _qmul(a: Sequence, b: Sequence) -> tuple:
     )
 
 
+def _require_zero(value: Any, message: str) -> None:
+    """Raise ``ValueError(message)`` if ``value`` is a number that is not 0 (to 1e-12 for floats).
+
+    Symbolic values (sympy expressions with free symbols) are not judged.
+    """
+    if getattr(value, "free_symbols", None):
+        return
+    try:
+        size = abs(complex(value))
+    except (TypeError, ValueError):
+        return
+    if size > 1e-12:
+        raise ValueError(f"{message} (off by {size:.3g})")
+
+
 class DualQuaternion:
     """An element of ``DH = H + eps H`` (``eps^2 = 0``), 8 coefficients.
 
@@ -99,6 +114,8 @@ class DualQuaternion:
             raise ValueError(f"direction and moment must be 3-vectors; got lengths {len(direction)}, {len(moment)}")
         d0, d1, d2 = direction
         m0, m1, m2 = moment
+        _require_zero(d0 * d0 + d1 * d1 + d2 * d2 - 1, f"direction {tuple(direction)} must be a unit vector")
+        _require_zero(d0 * m0 + d1 * m1 + d2 * m2, f"moment {tuple(moment)} must be orthogonal to the direction")
         return cls((0 * d0, d0, d1, d2, 0 * d0, -m0, -m1, -m2))
 
     @classmethod
