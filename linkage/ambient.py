@@ -41,12 +41,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
-from charts.chain_geometry import to_real
 from manifold import CallableDense, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from manifold.validation import check_bool, check_real
 
 from .chain import Chain
-from .constraints import HingeConstraints, start_state
+from .constraints import start_state
 from .motion import ChainMotion
 
 __all__ = ["integrate_ambient"]

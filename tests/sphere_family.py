@@ -10,7 +10,6 @@ round metric (``K = I``) are great circles, an exact reference.
 
 from __future__ import annotations
 
-import heyoka as hy
 import numpy as np
 
 from manifold import Atlas, ChartDomainError, ChartFamily, InducedMetric, SymbolicChart
