@@ -211,8 +211,17 @@ class GeodesicSolution:
     @property
     def relative_energy_error(self) -> float:
         """``max_t |E(t) - E(0)| / E(0)`` over the recorded energies (a float for every method)."""
-        E = np.array([float(e) for e in self.energies])
-        return float(np.max(np.abs(E - E[0])) / E[0]) if E[0] != 0 else float(np.max(np.abs(E)))
+        return float(np.max(self.energy_deviations()))
+
+    def energy_deviations(self, start: int = 0) -> NDArray:
+        """``|E_k - E_0| / E_0`` (``|E_k|`` if ``E_0 = 0``) for the energies recorded from index ``start``, as floats.
+
+        The differences are taken in the working precision: rounding each energy
+        to float64 first would hide every deviation below 1e-16.
+        """
+        E0 = self.energies[0]
+        dev = [abs(e - E0) / E0 if E0 != 0 else abs(e) for e in self.energies[start:]]
+        return np.array([float(d) for d in dev])
 
     def end_state(self) -> tuple[NDArray, NDArray]:
         """Point and embedded velocity where the solve stopped (available also with ``dense=False``)."""

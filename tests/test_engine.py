@@ -204,3 +204,14 @@ def test_the_ambient_reference_returns_the_same_solution_type():
         assert charts[k] == sol.metric.atlas.get_chart_index(p[k])
     ref = free_motion(chain, h0, v0, 3.0)
     assert np.abs(motion(ts)[0] - ref(ts)[0]).max() <= 1e-9
+
+
+def test_energy_error_is_measured_in_the_working_precision():
+    """Rounding each energy to float64 before subtracting hid every deviation below 1e-16 (it reported 0)."""
+    chain = Chain(4, 2.7)
+    h0, v0 = unit_speed_start(chain, [0.3, 0.4], [1.0, 0.2])
+    sol = free_motion(chain, h0, v0, 3.0, fp_type=np.longdouble).solution
+    E = np.array(sol.energies, dtype=np.longdouble)
+    expected = float(np.max(np.abs(E - E[0]) / E[0]))
+    assert 0 < sol.relative_energy_error == pytest.approx(expected, rel=1e-6)
+    assert sol.relative_energy_error < 1e-17
