@@ -236,10 +236,13 @@ class ChartNumerics:
         to rounding wherever ``cond(g) eps < 1``.
         """
         u = self.M_inv @ v
-        zero_c = np.zeros((self.k, 1))
-        c = self._eval(a[:, None], zero_c, u[:, None])[2 * self.N : 2 * self.N + self.k, 0]
+        c = self._project(a, u)
         Jc = self._eval(a[:, None], c[:, None], np.zeros((self.N, 1)))[self.N : 2 * self.N, 0]
-        return c + self._eval(a[:, None], zero_c, (u - Jc)[:, None])[2 * self.N : 2 * self.N + self.k, 0]
+        return c + self._project(a, u - Jc)
+
+    def _project(self, a: NDArray, u: NDArray) -> NDArray:
+        """``g^{-1} J^T W u`` at one point ``a`` for a chart-space vector ``u`` (the Gauss-Newton step)."""
+        return self._eval(a[:, None], np.zeros((self.k, 1)), u[:, None])[2 * self.N : 2 * self.N + self.k, 0]
 
     def polish(self, a: NDArray, p: NDArray) -> NDArray:
         """Gauss-Newton steps ``a += g^{-1} J^T W (z* - z(a))`` toward ``p`` in the working precision.
@@ -251,14 +254,10 @@ class ChartNumerics:
         """
         if is_double(self.fp):
             return a
-        zero_c = np.zeros((self.k, 1))
         target = self.M_inv @ (p - self.m)
 
         def point(x: NDArray) -> NDArray:
-            return self._eval(x[:, None], zero_c, np.zeros((self.N, 1)))[: self.N, 0]
-
-        def solve(x: NDArray, r: NDArray) -> NDArray:
-            return self._eval(x[:, None], zero_c, r[:, None])[2 * self.N : 2 * self.N + self.k, 0]
+            return self._eval(x[:, None], np.zeros((self.k, 1)), np.zeros((self.N, 1)))[: self.N, 0]
 
         max_steps = 2 + int(np.ceil(-np.log2(unit_roundoff(self.fp)) / 50))
-        return gauss_newton(a, target, point, solve, max_steps=max_steps, step_tol=4 * unit_roundoff(self.fp))
+        return gauss_newton(a, target, point, self._project, max_steps=max_steps, step_tol=4 * unit_roundoff(self.fp))
