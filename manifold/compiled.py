@@ -17,9 +17,7 @@ default ``~/.cache/heyoka``): a second process skips LLVM's optimisation.
 
 from __future__ import annotations
 
-import copy
 import threading
-import time
 from collections.abc import Callable, Hashable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -28,13 +26,14 @@ import heyoka as hy
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .artefacts import ArtefactStore
 from .chart import gauss_newton
 from .family import ChartFamily
 from .geodesic_system import Layout, SymbolicPieces
 from .precision import as_fp, heyoka_fp_kwargs, is_double, unit_roundoff
 
 
-class CompiledFamily:
+class CompiledFamily(ArtefactStore):
     """Compiled artefacts of one chart family (use :func:`compiled` to get the shared instance).
 
     Attributes
@@ -50,35 +49,13 @@ class CompiledFamily:
     """
 
     def __init__(self, family: ChartFamily) -> None:
+        super().__init__()
         self.family = family
         self.layout = Layout.of(family)
-        self.compile_seconds = 0.0
-        self._artefacts: dict[Hashable, Any] = {}
-        self._pools: dict[Hashable, list] = {}
-        self._lock = threading.RLock()
         self.n_quality = len(self.pieces(float).quality)
 
     def __repr__(self) -> str:
         return f"CompiledFamily({self.family!r}, {len(self._artefacts)} artefacts)"
-
-    def _get(self, key: Hashable, build: Callable[[], Any]) -> Any:
-        """The artefact ``key``, built once (under the lock) on first use."""
-        try:
-            return self._artefacts[key]
-        except KeyError:
-            pass
-        with self._lock:
-            if key not in self._artefacts:
-                t0 = time.perf_counter()
-                self._artefacts[key] = build()
-                self.compile_seconds += time.perf_counter() - t0
-            return self._artefacts[key]
-
-    def clear(self) -> None:
-        """Forget every artefact (for measuring cold compiles; heyoka's disk cache is separate)."""
-        with self._lock:
-            self._artefacts.clear()
-            self._pools.clear()
 
     def pieces(self, fp_type: Any) -> SymbolicPieces:
         """The symbolic pieces with constants exact in ``fp_type``."""
@@ -138,17 +115,8 @@ class CompiledFamily:
             return hy.taylor_adaptive(P.equations(form), as_fp(np.zeros(2 * P.k), fp_type), compact_mode=True,
                                       t_events=P.events(backward), **kw, **heyoka_fp_kwargs(fp_type))
 
-        template = self._get(key, build)
-        with self._lock:
-            pool = self._pools.setdefault(key, [])
-            ta = pool.pop() if pool else None
-        if ta is None:
-            ta = copy.copy(template)
-        try:
+        with self._lend(key, build) as ta:
             yield ta
-        finally:
-            with self._lock:
-                self._pools.setdefault(key, []).append(ta)
 
     def evaluate_jacobian(self, theta: ArrayLike, a: ArrayLike) -> tuple[NDArray, NDArray]:
         """``z`` (``(..., N)``) and ``dz/da`` (``(..., N, k)``) at parameters ``a`` (float64, batched)."""
@@ -226,6 +194,11 @@ class ChartNumerics:
         out = self._eval(a, c, np.zeros((self.N, a.shape[1])))
         z, Jc, E = out[: self.N], out[self.N : 2 * self.N], out[-1]
         return (self.M @ z).T + self.m, (self.M @ Jc).T, E
+
+    def point_velocity_states(self, states: NDArray) -> tuple[NDArray, NDArray]:
+        """Points and embedded velocities ``(m, N)`` of chart states ``(a, c)`` stacked as rows ``(m, >= 2k)``."""
+        p, v, _ = self.point_velocity_energy(states[:, : self.k].T, states[:, self.k : 2 * self.k].T)
+        return p, v
 
     def coefficients(self, a: NDArray, v: NDArray) -> NDArray:
         """``c = g^{-1} J^T K v``: the K-orthogonal tangent coefficients of the embedded ``v``.

@@ -36,14 +36,6 @@ from .validation import check_bool, check_index, check_real, real_array
 #: A start point whose chart parameters give back a point farther than this (times ``max(1, |p0|)``) is refused:
 #: the start is never silently moved.
 START_POINT_TOLERANCE = 1e-9
-#: The energy check: a solve fails where ``|E - E0| > (ENERGY_SAFETY sqrt(steps + 1) + ENERGY_FLOOR) tol E0``, ``tol`` the
-#: stepper's relative tolerance.  Well-conditioned runs stay below ``10 tol sqrt(steps)``; near a fold (L close to n-2) the
-#: chart conditioning costs up to two more digits.
-ENERGY_SAFETY = 1000.0
-#: Evaluating ``E`` itself loses ``tol`` times the chart's conditioning (up to ``1/sqrt(L - (n-2))`` near a fold).
-ENERGY_FLOOR = 1e5
-
-
 class _NoGoodChart(Exception):
     """No chart has quality above ``q_out`` at a switch."""
 
@@ -156,9 +148,9 @@ def solve_chart_exp_ode(
             recorded = len(sol.energies)
             sol.energy_times.extend(adv.step_times)
             sol.energies.extend(np.atleast_1d(E))
-            violation = _energy_violation(sol, recorded, energy_tol, atlas.ids[i])
+            violation = sol.energy_violation(recorded, energy_tol, f"chart {atlas.ids[i]}")
             if grid is not None:
-                n_grid = _record_grid(sol, grid, n_grid, adv, i, sign)
+                n_grid = sol.record_grid(grid, n_grid, adv, sign, num[i].point_velocity_states)
             a, c, t = adv.y[:k], adv.y[k:], adv.t
             if violation is not None:
                 status, message = SolveStatus.ENERGY_CHECK_FAILED, violation
@@ -276,37 +268,8 @@ def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t: Any, q_out
     return j, a_j, num[j].coefficients(a_j, v)
 
 
-def _record_grid(sol: GeodesicSolution, grid: NDArray, done: int, adv: Any, i: int, sign: float) -> int:
-    """Evaluate the grid times inside the segment just integrated; return how many are done."""
-    finished = adv.event is None and adv.failure is None
-    upto = len(grid) if finished else int(np.searchsorted(sign * grid, sign * float(adv.t), side="right"))
-    if upto <= done or adv.dense is None:
-        return done
-    states = adv.dense(grid[done:upto])
-    k = sol.metric.atlas.dim
-    p, v, _ = sol.chart_numerics[i].point_velocity_energy(states[:, :k].T, states[:, k:].T)
-    if sol.points is None:
-        sol.points = np.empty((len(grid), p.shape[1]), dtype=p.dtype)
-        sol.velocities = np.empty_like(sol.points)
-    sol.points[done:upto], sol.velocities[done:upto] = p, v
-    return upto
-
-
 def _as_vector(x: ArrayLike, name: str, N: int) -> NDArray:
     x = real_array(name, x)
     if x.shape != (N,):
         raise ValueError(f"{name} must have shape ({N},), got {x.shape}")
     return x
-
-
-def _energy_violation(sol: GeodesicSolution, start: int, tol: float, chart: Any) -> str | None:
-    """A sentence if an energy recorded since index ``start`` breaks the bound, else ``None``."""
-    err = sol.energy_deviations(start)
-    bound = (ENERGY_SAFETY * np.sqrt(sol.n_steps + 1) + ENERGY_FLOOR) * tol
-    bad = ~(err <= bound)  # NaN counts as a violation
-    if not np.any(bad):
-        return None
-    k = int(np.argmax(bad))
-    return (f"energy check failed at t = {float(sol.energy_times[start + k]):.6g} in chart {chart}: "
-            f"|E - E0| / E0 = {err[k]:.3g} exceeds the bound {bound:.3g} = ({ENERGY_SAFETY:g} sqrt(steps + 1) + "
-            f"{ENERGY_FLOOR:g}) tol (tol = {tol:.3g})")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
@@ -23,6 +24,14 @@ from .metric import InducedMetric
 from .precision import as_fp
 
 
+#: The energy check: a solve fails where ``|E - E0| > (ENERGY_SAFETY sqrt(steps + 1) + ENERGY_FLOOR) tol E0``, ``tol`` the
+#: stepper's relative tolerance.  Well-conditioned runs stay below ``10 tol sqrt(steps)``; near a fold (L close to n-2) the
+#: chart conditioning costs up to two more digits.
+ENERGY_SAFETY = 1000.0
+#: Evaluating ``E`` itself loses ``tol`` times the chart's conditioning (up to ``1/sqrt(L - (n-2))`` near a fold).
+ENERGY_FLOOR = 1e5
+
+
 class SolveStatus(enum.Enum):
     """How a solve ended."""
 
@@ -31,6 +40,7 @@ class SolveStatus(enum.Enum):
     MAX_SWITCHES = "max_switches chart switches reached"
     NO_GOOD_CHART = "no chart of quality above q_out"
     ENERGY_CHECK_FAILED = "the energy left its bound"
+    CONSTRAINT_CHECK_FAILED = "the state left the constraints"
 
 
 class GeodesicIntegrationError(RuntimeError):
@@ -138,7 +148,8 @@ class GeodesicSolution:
     Attributes
     ----------
     metric
-        The :class:`~manifold.metric.InducedMetric` (its atlas names the charts).
+        The :class:`~manifold.metric.InducedMetric` (its atlas names the charts);
+        ``None`` for a method without an atlas (then there are no chart parameters).
     fp_type
         Floating type of the integration.
     method
@@ -163,7 +174,7 @@ class GeodesicSolution:
         :class:`SolverStats`.
     """
 
-    metric: InducedMetric
+    metric: InducedMetric | None
     fp_type: Any
     method: str
     t_span: tuple[float, float]
@@ -223,6 +234,42 @@ class GeodesicSolution:
         dev = [abs(e - E0) / E0 if E0 != 0 else abs(e) for e in self.energies[start:]]
         return np.array([float(d) for d in dev])
 
+    def energy_violation(self, start: int, tol: float, where: str) -> str | None:
+        """A sentence if an energy recorded since index ``start`` breaks the solvers' bound, else ``None``.
+
+        The bound is ``(ENERGY_SAFETY sqrt(steps + 1) + ENERGY_FLOOR) tol``
+        relative to ``E0``, ``tol`` the stepper's relative tolerance; NaN
+        breaks it.  ``where`` names the place (a chart) in the sentence.
+        """
+        err = self.energy_deviations(start)
+        bound = (ENERGY_SAFETY * np.sqrt(self.n_steps + 1) + ENERGY_FLOOR) * tol
+        bad = ~(err <= bound)  # NaN counts as a violation
+        if not np.any(bad):
+            return None
+        k = int(np.argmax(bad))
+        return (f"energy check failed at t = {float(self.energy_times[start + k]):.6g} in {where}: "
+                f"|E - E0| / E0 = {err[k]:.3g} exceeds the bound {bound:.3g} = ({ENERGY_SAFETY:g} sqrt(steps + 1) + "
+                f"{ENERGY_FLOOR:g}) tol (tol = {tol:.3g})")
+
+    def record_grid(self, grid: NDArray, done: int, adv: Any, sign: float,
+                    point_velocity: Callable[[NDArray], tuple[NDArray, NDArray]]) -> int:
+        """Record the ``t_eval`` times inside the segment just integrated; return how many are done.
+
+        ``adv`` is the stepper's :class:`~manifold.steppers.Advance` (its dense
+        output is evaluated); ``point_velocity`` maps dense states ``(m, 2k)``
+        to points and embedded velocities ``(m, N)`` each; ``sign`` is the
+        direction of integration.
+        """
+        upto = int(np.searchsorted(sign * grid, sign * float(adv.t), side="right"))
+        if upto <= done or adv.dense is None:
+            return done
+        p, v = point_velocity(adv.dense(grid[done:upto]))
+        if self.points is None:
+            self.points = np.empty((len(grid), p.shape[1]), dtype=p.dtype)
+            self.velocities = np.empty_like(self.points)
+        self.points[done:upto], self.velocities[done:upto] = p, v
+        return upto
+
     def end_state(self) -> tuple[NDArray, NDArray]:
         """Point and embedded velocity where the solve stopped (available also with ``dense=False``)."""
         i, a, c = self.final_state
@@ -264,6 +311,8 @@ class GeodesicSolution:
         A segment integrated in ambient coordinates is read in the best chart
         of the atlas at each time (float64 inverse).
         """
+        if self.metric is None:
+            raise ValueError("this solution has no atlas (solved without metric=...): no chart parameters")
         ts = np.asarray(t, dtype=float)
         flat = ts.ravel()
         seg, states = self._states(flat)
@@ -288,7 +337,8 @@ class GeodesicSolution:
         ts = np.asarray(t, dtype=float)
         flat = ts.ravel()
         seg, states = self._states(flat)
-        N, k = self.metric.atlas.ambient_dim, self.metric.atlas.dim
+        # without an atlas every segment is in ambient coordinates, the state (p, v)
+        N = states.shape[1] // 2 if self.metric is None else self.metric.atlas.ambient_dim
         ps = np.empty((flat.size, N), dtype=states.dtype)
         vs = np.empty((flat.size, N), dtype=states.dtype)
         charts = np.array([-1 if self.segments[s].chart is None else self.segments[s].chart for s in seg])
@@ -297,6 +347,5 @@ class GeodesicSolution:
             if i < 0:  # ambient coordinates
                 ps[sel], vs[sel] = states[sel, :N], states[sel, N : 2 * N]
             else:
-                ps[sel], vs[sel], _ = self.chart_numerics[int(i)].point_velocity_energy(
-                    states[sel, :k].T, states[sel, k : 2 * k].T)
+                ps[sel], vs[sel] = self.chart_numerics[int(i)].point_velocity_states(states[sel])
         return ps.reshape(*ts.shape, N), vs.reshape(*ts.shape, N)

@@ -109,31 +109,37 @@ class TaylorStepper(Stepper):
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
                 switching: bool) -> Iterator[AdvanceFunction]:
         with family.integrator(fp_type, self.tol, form, backward) as ta:
-            n_events = len(ta.t_events) if ta.with_events else 0
+            yield lambda t, y, t_final, pars, dense: taylor_advance(ta, t, y, t_final, pars, dense, fp_type)
 
-            def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
-                ta.state[:] = y
-                ta.time = t
-                ta.pars[:] = pars[: len(ta.pars)]
-                if ta.with_events:
-                    ta.reset_cooldowns()
-                outcome, _, _, n_steps, cout, *_ = ta.propagate_until(t_final, c_output=dense)
-                y_end = np.array(ta.state)
-                event, failure = None, None
-                if outcome != hy.taylor_outcome.time_limit:
-                    event = -outcome.value - 1  # heyoka reports terminal event k as outcome -(k + 1)
-                    if not 0 <= event < n_events:
-                        event, failure = None, str(outcome)
-                out = None
-                if dense and cout is not None and n_steps > 0:
-                    out = TaylorDense(np.array(cout.times), np.array(cout.tcs), fp_type)
-                    times = out.times[1:]
-                    states = np.concatenate([out.tcs[1:, :, 0], y_end[None, :]])  # a step's order-0 term is its start
-                else:
-                    times, states = np.array([ta.time]), y_end[None, :]
-                return Advance(ta.time, y_end, n_steps, event, times, states, out, failure)
 
-            yield advance
+def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool, fp_type: Any) -> Advance:
+    """Run the heyoka integrator ``ta`` from ``(t, y)`` to ``t_final`` or its first terminal event.
+
+    Shared by every Taylor method (chart geodesics, constrained motion): sets
+    state, time and parameters, resets the event cooldowns, propagates, and
+    reads heyoka's continuous output into a :class:`TaylorDense` when ``dense``.
+    """
+    ta.state[:] = y
+    ta.time = t
+    ta.pars[:] = pars[: len(ta.pars)]
+    n_events = len(ta.t_events) if ta.with_events else 0
+    if n_events:
+        ta.reset_cooldowns()
+    outcome, _, _, n_steps, cout, *_ = ta.propagate_until(t_final, c_output=dense)
+    y_end = np.array(ta.state)
+    event, failure = None, None
+    if outcome != hy.taylor_outcome.time_limit:
+        event = -outcome.value - 1  # heyoka reports terminal event k as outcome -(k + 1)
+        if not 0 <= event < n_events:
+            event, failure = None, str(outcome)
+    out = None
+    if dense and cout is not None and n_steps > 0:
+        out = TaylorDense(np.array(cout.times), np.array(cout.tcs), fp_type)
+        times = out.times[1:]
+        states = np.concatenate([out.tcs[1:, :, 0], y_end[None, :]])  # a step's order-0 term is its start
+    else:
+        times, states = np.array([ta.time]), y_end[None, :]
+    return Advance(ta.time, y_end, n_steps, event, times, states, out, failure)
 
 
 class ScipyStepper(Stepper):
