@@ -30,12 +30,15 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+import heyoka as hy
+
 from charts.chain_geometry import to_real
+from manifold.constrained import ConstrainedSystem
 from manifold.validation import check_real
 
 from .chain import Chain
 
-__all__ = ["HingeConstraints", "start_state"]
+__all__ = ["ChainSystem", "HingeConstraints", "start_state"]
 
 #: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
 _PROJECTION_STEPS = 8
@@ -300,3 +303,50 @@ def start_state(
             )
         v0 = system.project_velocity(x0, v0)
     return system, x0, v0, t_final
+
+
+class ChainSystem(ConstrainedSystem):
+    """The chain's configuration space as a :class:`manifold.constrained.ConstrainedSystem`.
+
+    Hinge space ``R^(2(n-1))`` (interleaved real hinges), constraints
+    ``c_k = |e_k|^2 - 1`` (``e_1 = p_1``, ``e_k = p_k - p_{k-1}``,
+    ``e_n = L - p_{n-1}``) and the kinetic-energy metric ``K = A (x) I_2``.
+    ``G`` has two nonzero ``1 x 2`` blocks per row, so with hinge masses only
+    (diagonal ``K``) the multiplier matrix ``G K^{-1} G^T`` is tridiagonal
+    and the generic ``L D L^T`` is the Thomas recursion; rod densities make
+    ``K^{-1}`` dense and the solve dense (``n <= 10``: still small).
+
+    Parameters
+    ----------
+    chain
+        The :class:`~linkage.Chain`.
+    """
+
+    def __init__(self, chain: Chain) -> None:
+        self.chain = chain
+        self.ambient_dim, self.n_constraints = 2 * (chain.n - 1), chain.n
+
+    def __repr__(self) -> str:
+        return f"ChainSystem({self.chain!r})"
+
+    @property
+    def key(self) -> tuple:
+        return ("chain", self.chain.n)
+
+    @property
+    def parameters(self) -> NDArray:
+        """``[L]``: one compiled integrator serves every ``L`` and every mass model of one sparsity."""
+        return np.array([self.chain.L])
+
+    @property
+    def metric_matrix(self) -> NDArray:
+        return self.chain.ambient_metric
+
+    def constraint_expressions(self, x: list, p: list, fp_type) -> list:
+        """``|e_k|^2 - 1`` with the pins ``0`` and ``L = p[0]``."""
+        L, one = p[0], hy.expression(fp_type(1.0))
+        hx, hy_ = x[0::2], x[1::2]
+        rods = [(hx[0], hy_[0])]  # e_1 = p_1
+        rods += [(hx[k] - hx[k - 1], hy_[k] - hy_[k - 1]) for k in range(1, self.chain.n - 1)]
+        rods.append((L - hx[-1], -hy_[-1]))  # e_n = L - p_{n-1}
+        return [ex * ex + ey * ey - one for ex, ey in rods]

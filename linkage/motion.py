@@ -1,6 +1,8 @@
 """Free motion of a chain: geodesics of its kinetic-energy metric through the atlas.
 
-:func:`free_motion` is a thin layer over :func:`manifold.solve_chart_exp_ode`;
+:func:`free_motion` is a thin layer over :func:`manifold.solve_chart_exp_ode`
+(``method="charts"``) and :func:`manifold.constrained.solve_constrained`
+(``method="hinges"``);
 :class:`ChainMotion` shows any method's solution in complex hinges instead of
 interleaved real points.
 """
@@ -15,9 +17,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from manifold import GeodesicSolution, solve_chart_exp_ode
+from manifold.constrained import solve_constrained
 
 from .chain import Chain
-from .constraints import start_state
+from .constraints import ChainSystem, start_state
 
 
 class ChainMotion:
@@ -105,12 +108,17 @@ class ChainMotion:
         return [c for k, c in enumerate(ids) if k == 0 or c != ids[k - 1]]
 
 
+#: The free-motion methods: in the atlas of suspension charts, or in hinge coordinates with rod constraints.
+METHODS = ("charts", "hinges")
+
+
 def free_motion(
     chain: Chain,
     hinges0: ArrayLike,
     velocity0: ArrayLike,
     t_final: float,
     *,
+    method: str = "charts",
     tangent_tol: float = 1e-9,
     project_velocity: bool = False,
     **kwargs: Any,
@@ -118,8 +126,17 @@ def free_motion(
     """Integrate the chain's force-free motion from ``hinges0`` with hinge velocity ``velocity0``.
 
     The start is checked in hinge space, where the rod constraints give an
-    exact tangency test independent of any chart (:func:`linkage.constraints.start_state`);
-    the motion is then integrated through the atlas.
+    exact tangency test independent of any chart (:func:`linkage.constraints.start_state`).
+    Both methods integrate the same geodesic of the kinetic-energy metric with
+    heyoka's Taylor method and return the same :class:`ChainMotion`:
+
+    * ``method="charts"``: in the atlas of suspension charts, switching chart
+      at events (:func:`manifold.solve_chart_exp_ode`); gives chart
+      parameters and the switch log;
+    * ``method="hinges"``: in hinge coordinates with the rod constraints and
+      their multipliers (:func:`manifold.constrained.solve_constrained` on
+      :class:`linkage.constraints.ChainSystem`); no chart, nothing singular,
+      chart parameters read on demand from the atlas.
 
     Parameters
     ----------
@@ -130,14 +147,25 @@ def free_motion(
         (tangent: ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)``).
     t_final
         Final time (finite, nonzero; negative integrates backward).
+    method
+        ``"charts"`` (default) or ``"hinges"``.
     tangent_tol
         Tolerance of the tangency check.
     project_velocity
         Project a non-tangent ``velocity0`` K-orthogonally instead of refusing it.
     **kwargs
-        Passed to :func:`manifold.solve_chart_exp_ode` (``stepper``, ``fp_type``,
-        ``tol``, ``q_out``, ``form``, ``dense``, ``t_eval``, ``throw``, ...).
+        Passed on: to :func:`manifold.solve_chart_exp_ode` for ``"charts"``
+        (``stepper``, ``fp_type``, ``tol``, ``q_out``, ``form``, ``dense``,
+        ``t_eval``, ``throw``, ...), to :func:`manifold.constrained.solve_constrained`
+        for ``"hinges"`` (``fp_type``, ``tol``, ``stabilisation``, ``rate``,
+        ``projection_interval``, ``compact_mode``, ``dense``, ``t_eval``, ``throw``).
     """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
-    # velocity0 is tangent to tangent_tol (checked above): the solver's own projection only removes rounding
-    return ChainMotion(chain, solve_chart_exp_ode(chain.metric(), x0, v0, t_final, project_velocity=True, **kwargs))
+    # velocity0 is tangent to tangent_tol (checked above): the solvers' own projection only removes rounding
+    if method == "hinges":
+        solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, metric=chain.metric(), **kwargs)
+    else:
+        solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, project_velocity=True, **kwargs)
+    return ChainMotion(chain, solution)

@@ -39,3 +39,50 @@ def cholesky_solve(g: Matrix, rhs: Sequence[hy.expression]) -> list[hy.expressio
         later = [R[m][i] * x[m] for m in range(i + 1, k)]
         x[i] = (y[i] - hy.sum(later)) * inv_diag[i] if later else y[i] * inv_diag[i]
     return x
+
+
+SparseMatrix = Sequence[Sequence["hy.expression | None"]]
+
+
+def ldl_solve(M: SparseMatrix, rhs: Sequence[hy.expression]) -> list[hy.expression]:
+    """Solve ``M x = rhs`` for symmetric positive definite ``M`` with structural zeros (``None``).
+
+    ``M = L D L^T`` with ``L`` unit lower triangular (lower triangle of ``M``
+    read), without square roots:
+
+    .. math::
+
+        D_j = M_{jj} - \\sum_{m<j} L_{jm}^2 D_m, \\qquad
+        L_{ij} = \\Big(M_{ij} - \\sum_{m<j} L_{im} L_{jm} D_m\\Big) / D_j .
+
+    An entry of ``L`` is ``None`` when every term of its sum is, so a banded
+    ``M`` costs ``O(k b^2)`` nodes: a tridiagonal one is the Thomas recursion.
+    Stable without pivoting because ``M`` is positive definite.
+    """
+    k = len(rhs)
+    L: list[list[hy.expression | None]] = [[None] * k for _ in range(k)]
+    LD: list[list[hy.expression | None]] = [[None] * k for _ in range(k)]  # L_im D_m, reused
+    inv_D: list[hy.expression] = []
+    for j in range(k):
+        inv_D.append(1.0 / _minus_sum(M[j][j], [LD[j][m] * L[j][m] for m in range(j) if L[j][m] is not None]))
+        for i in range(j + 1, k):
+            terms = [LD[i][m] * L[j][m] for m in range(j) if L[i][m] is not None and L[j][m] is not None]
+            if M[i][j] is None and not terms:
+                continue
+            LD[i][j] = _minus_sum(M[i][j], terms)  # = L_ij D_j
+            L[i][j] = LD[i][j] * inv_D[j]
+    y: list[hy.expression] = []
+    for i in range(k):
+        y.append(_minus_sum(rhs[i], [L[i][m] * y[m] for m in range(i) if L[i][m] is not None]))
+    x: list[hy.expression | None] = [None] * k
+    for i in reversed(range(k)):
+        x[i] = _minus_sum(y[i] * inv_D[i], [L[m][i] * x[m] for m in range(i + 1, k) if L[m][i] is not None])
+    return x  # type: ignore[return-value]
+
+
+def _minus_sum(first: "hy.expression | None", terms: list[hy.expression]) -> hy.expression:
+    """``first - sum(terms)`` (``first = None`` reads as 0)."""
+    if not terms:
+        return first
+    total = terms[0] if len(terms) == 1 else hy.sum(terms)
+    return -total if first is None else first - total

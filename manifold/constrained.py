@@ -1,0 +1,527 @@
+"""Geodesics of a submanifold given by constraint equations, integrated in ambient coordinates.
+
+A :class:`ConstrainedSystem` is the set ``{x in R^N : c(x) = 0}`` of ``m``
+constraints with full-rank Jacobian ``G = dc/dx``, in ``R^N`` with a constant
+metric ``K``.  Its geodesics (free motion at constant kinetic energy
+``1/2 v^T K v``) solve the Lagrange-multiplier equations
+
+.. math::
+
+    K x'' = G^T \\lambda, \\qquad G x'' = -\\dot G v
+    \\quad\\Longrightarrow\\quad
+    x'' = K^{-1} G^T M^{-1} (-\\dot G v), \\qquad M = G K^{-1} G^T,
+
+with ``(\\dot G v)_k = v^T (\\nabla^2 c_k) v``.  No chart is used, so nothing
+is singular: these are ``+``, ``*`` and ``/`` only, and ``M`` is solved by a
+square-root-free ``L D L^T`` that skips structural zeros (a chain's ``M`` is
+tridiagonal).  The equations keep ``c'' = 0``, not ``c = 0``, so integration
+errors drift off the constraints; :func:`solve_constrained` stabilises them
+either way the literature does:
+
+* ``"baumgarte"`` -- replace ``-\\dot G v`` by ``-\\dot G v - 2 \\alpha G v - \\alpha^2 c``,
+  so that ``c'' + 2 alpha c' + alpha^2 c = 0``: a drift is damped critically
+  at rate ``alpha`` (a runtime parameter, ``rate`` times the speed scale
+  ``sqrt(v^T K v / tr K)``, negated for backward runs, where time reversal
+  would turn the damping into growth); all in the equations, so in every
+  precision at no extra cost per step;
+* ``"projection"`` -- every ``projection_interval`` project ``x`` onto
+  ``c = 0`` (Gauss-Newton with the K-smallest step ``K^{-1} G^T M^{-1} c``) and
+  ``v`` K-orthogonally onto ``ker G``, in the working precision;
+* ``"none"`` -- for studies of the drift.
+
+A system provides its constraints (and, optionally, hand-written ``G`` and
+``\\dot G v``) as heyoka expressions; everything else is generic.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Hashable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import heyoka as hy
+import mpmath
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .artefacts import ArtefactStore
+from .expression_linalg import ldl_solve
+from .metric import InducedMetric
+from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
+from .solution import GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
+from .steppers import MAX_TOLERANCE, taylor_advance
+from .validation import check_bool, check_real, real_array
+
+__all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedSystem", "compiled_constrained", "solve_constrained"]
+
+Expr = hy.expression
+#: How drift off the constraints is held back (see the module docstring).
+STABILISATIONS = ("baumgarte", "projection", "none")
+#: A start farther than this from ``c = 0`` (``max_k |c_k|``) is refused rather than moved.
+START_CONSTRAINT_TOLERANCE = 1e-9
+
+
+class ConstrainedSystem(ABC):
+    """A submanifold ``c(x) = 0`` of ``R^N`` with a constant metric ``K`` (see the module docstring).
+
+    Subclasses set ``ambient_dim`` (``N``) and ``n_constraints`` (``m``) and
+    implement :attr:`key`, :attr:`metric_matrix` and :meth:`constraint_expressions`.
+    Numbers that vary between systems of one kind (a chain's ``L``) are
+    runtime :attr:`parameters`, and so are the entries of ``K`` and ``K^{-1}``:
+    code is compiled once per :attr:`key` and sparsity pattern of ``K``.
+    """
+
+    ambient_dim: int
+    n_constraints: int
+
+    @property
+    @abstractmethod
+    def key(self) -> Hashable:
+        """Identity of the compiled code: equal keys mean equal constraint expressions in the parameters."""
+
+    @property
+    def parameters(self) -> NDArray:
+        """Runtime constants of :meth:`constraint_expressions` (float64, taken exact); default none."""
+        return np.zeros(0)
+
+    @property
+    @abstractmethod
+    def metric_matrix(self) -> NDArray:
+        """The constant ambient metric ``K``, ``(N, N)`` symmetric positive definite (float64 entries, taken exact)."""
+
+    @abstractmethod
+    def constraint_expressions(self, x: list[Expr], p: list[Expr], fp_type: Any) -> list[Expr]:
+        """``c(x)``: ``m`` heyoka expressions of the variables ``x`` and the :attr:`parameters` ``p``
+        (given as ``heyoka.par`` expressions); other constants made in ``fp_type``."""
+
+    def jacobian_expressions(self, x: list[Expr], c: list[Expr]) -> list[list[Expr | None]]:
+        """``G = dc/dx`` as rows of expressions, ``None`` where ``c_k`` does not involve ``x_j``.
+
+        Default: heyoka's symbolic derivative; override with a hand-written
+        sparse form when it is smaller.
+        """
+        names = [str(xi) for xi in x]
+        rows = []
+        for ck in c:
+            used = set(hy.get_variables(ck))
+            rows.append([hy.diff(ck, xj) if n in used else None for xj, n in zip(x, names)])
+        return rows
+
+    def velocity_term_expressions(self, x: list[Expr], v: list[Expr], G: list[list[Expr | None]]) -> list[Expr]:
+        """``(dG/dt) v``, i.e. ``v^T (nabla^2 c_k) v`` for each ``k`` (default: differentiate ``G v`` along ``v``)."""
+        out = []
+        for row in G:
+            Gv = hy.sum([g * vj for g, vj in zip(row, v) if g is not None])
+            used = set(hy.get_variables(Gv))
+            out.append(hy.sum([hy.diff(Gv, xi) * vi for xi, vi in zip(x, v) if str(xi) in used]))
+        return out
+
+
+def _exact_inverse(K: NDArray) -> list[list[Fraction]]:
+    """``K^{-1}`` in exact rationals (Gauss-Jordan on the float64 entries taken exact)."""
+    n = K.shape[0]
+    A = [[Fraction(float(K[i, j])) for j in range(n)] + [Fraction(int(i == j)) for j in range(n)] for i in range(n)]
+    for col in range(n):
+        piv = max(range(col, n), key=lambda r: abs(A[r][col]))
+        if A[piv][col] == 0:
+            raise ValueError("the metric matrix K is singular")
+        A[col], A[piv] = A[piv], A[col]
+        p = A[col][col]
+        A[col] = [a / p for a in A[col]]
+        for r in range(n):
+            if r != col and A[r][col] != 0:
+                f = A[r][col]
+                A[r] = [a - f * b for a, b in zip(A[r], A[col])]
+    return [row[n:] for row in A]
+
+
+def _fraction_to_fp(q: Fraction, fp_type: Any) -> Any:
+    """A rational rounded once to ``fp_type`` (through a 40-digit-margin decimal string)."""
+    if q.denominator == 1 or is_double(fp_type):
+        return fp_type(float(q)) if is_double(fp_type) else fp_type(q.numerator)
+    bits = int(-np.log2(unit_roundoff(fp_type))) + 64
+    with mpmath.workprec(bits):
+        text = mpmath.nstr(mpmath.mpf(q.numerator) / q.denominator, int(bits * 0.302) + 2, strip_zeros=False)
+    if isinstance(fp_type, MultiPrecision):
+        return hy.real(text, fp_type.bits)
+    return fp_type(text)
+
+
+@dataclass(frozen=True)
+class ConstrainedLayout:
+    """Where the runtime parameters live: ``(alpha, system parameters, K^{-1} entries, K entries)``.
+
+    Only the structurally nonzero entries of the lower triangles of ``K^{-1}``
+    and ``K`` are parameters; their pattern is part of the compiled code.
+    """
+
+    n_parameters: int
+    inverse_pattern: tuple[tuple[int, int], ...]
+    metric_pattern: tuple[tuple[int, int], ...]
+
+    @classmethod
+    def of(cls, system: ConstrainedSystem) -> "ConstrainedLayout":
+        K = np.asarray(system.metric_matrix, dtype=float)
+        Ki = _exact_inverse(K)
+        N = K.shape[0]
+        return cls(len(system.parameters), tuple((i, j) for i in range(N) for j in range(i + 1) if Ki[i][j] != 0),
+                   tuple((i, j) for i in range(N) for j in range(i + 1) if K[i, j] != 0))
+
+    def matrices(self, N: int) -> tuple[list[list[Expr | None]], list[list[Expr | None]]]:
+        """Symmetric ``K^{-1}`` and ``K`` of ``heyoka.par`` entries (``None`` off the patterns)."""
+        out = []
+        offset = 1 + self.n_parameters
+        for pattern in (self.inverse_pattern, self.metric_pattern):
+            A: list[list[Expr | None]] = [[None] * N for _ in range(N)]
+            for m, (i, j) in enumerate(pattern):
+                A[i][j] = A[j][i] = hy.par[offset + m]
+            offset += len(pattern)
+            out.append(A)
+        return out[0], out[1]
+
+    def pack(self, system: ConstrainedSystem, alpha: float, fp_type: Any) -> NDArray:
+        """The parameter values in ``fp_type``: ``K^{-1}`` rounded once from its exact rational value."""
+        K = np.asarray(system.metric_matrix, dtype=float)
+        Ki = _exact_inverse(K)
+        values = [fp_type(alpha)] + [fp_type(float(x)) for x in system.parameters]
+        values += [_fraction_to_fp(Ki[i][j], fp_type) for i, j in self.inverse_pattern]
+        values += [fp_type(float(K[i, j])) for i, j in self.metric_pattern]
+        return as_fp(np.array(values, dtype=object), fp_type)
+
+
+class ConstrainedPieces:
+    """The symbolic equations of one system in one precision: nothing compiled.
+
+    Attributes
+    ----------
+    x, v
+        Position and velocity variables ``x0..``, ``v0..``.
+    c, G, Gv
+        Constraints, sparse Jacobian rows and ``G v``.
+    W, M
+        ``K^{-1} G^T`` and the multiplier matrix ``G K^{-1} G^T`` (lower triangle), ``None`` for structural zeros.
+    """
+
+    def __init__(self, system: ConstrainedSystem, layout: ConstrainedLayout, fp_type: Any) -> None:
+        N = system.ambient_dim
+        self.fp = fp_type
+        self.x = [hy.expression(f"x{i}") for i in range(N)]
+        self.v = [hy.expression(f"v{i}") for i in range(N)]
+        self.c = system.constraint_expressions(self.x, [hy.par[1 + i] for i in range(layout.n_parameters)], fp_type)
+        if len(self.c) != system.n_constraints:
+            raise ValueError(f"constraint_expressions gave {len(self.c)} constraints, the system declares "
+                             f"{system.n_constraints}")
+        self.G = system.jacobian_expressions(self.x, self.c)
+        self.Gv = [hy.sum([g * vj for g, vj in zip(row, self.v) if g is not None]) for row in self.G]
+        self.curvature = system.velocity_term_expressions(self.x, self.v, self.G)
+        Kinv, self.K = layout.matrices(N)
+        m = len(self.c)
+        # W = K^{-1} G^T (N x m) and M = G W (m x m), keeping structural zeros
+        self.W = [[_sum_or_none([Kinv[i][j] * self.G[k][j] for j in range(N)
+                                 if Kinv[i][j] is not None and self.G[k][j] is not None]) for k in range(m)]
+                  for i in range(N)]
+        self.M = [[_sum_or_none([self.G[k][i] * self.W[i][l] for i in range(N)
+                                 if self.G[k][i] is not None and self.W[i][l] is not None]) if l <= k else None
+                   for l in range(m)] for k in range(m)]
+
+    def correction(self, r: list[Expr]) -> list[Expr]:
+        """``K^{-1} G^T M^{-1} r``: the K-smallest ``d`` with ``G d = r``."""
+        lam = ldl_solve(self.M, r)
+        return [_sum_or_none([w * lk for w, lk in zip(row, lam) if w is not None]) or hy.expression(self.fp(0))
+                for row in self.W]
+
+    def equations(self, stabilised: bool) -> list[tuple[Expr, Expr]]:
+        """``x' = v``, ``v' = K^{-1} G^T M^{-1} r`` with ``r = -(dG/dt) v`` (minus ``2 alpha G v + alpha^2 c``
+        if ``stabilised``; ``alpha = par[0]``)."""
+        if stabilised:
+            alpha = hy.par[0]
+            r = [-(q + alpha * (2.0 * gv + alpha * ck)) for q, gv, ck in zip(self.curvature, self.Gv, self.c)]
+        else:
+            r = [-q for q in self.curvature]
+        acc = self.correction(r)
+        return list(zip(self.x, self.v)) + list(zip(self.v, acc))
+
+    def energy(self) -> Expr:
+        """``1/2 v^T K v``."""
+        N = len(self.v)
+        terms = [self.K[i][j] * self.v[i] * self.v[j] for i in range(N) for j in range(N) if self.K[i][j] is not None]
+        return hy.expression(self.fp(0.5)) * hy.sum(terms)
+
+
+def _sum_or_none(terms: list[Expr]) -> Expr | None:
+    if not terms:
+        return None
+    return terms[0] if len(terms) == 1 else hy.sum(terms)
+
+
+class CompiledConstrained(ArtefactStore):
+    """Compiled artefacts of one :class:`ConstrainedSystem` (get the shared one from :func:`compiled_constrained`).
+
+    Attributes
+    ----------
+    system
+        The first system of this key and layout (any other builds the same expressions).
+    layout
+        The :class:`ConstrainedLayout` of the runtime parameters.
+    """
+
+    def __init__(self, system: ConstrainedSystem, layout: ConstrainedLayout) -> None:
+        super().__init__()
+        self.system, self.layout = system, layout
+
+    def __repr__(self) -> str:
+        return f"CompiledConstrained({self.system!r}, {len(self._artefacts)} artefacts)"
+
+    def pieces(self, fp_type: Any) -> ConstrainedPieces:
+        """The symbolic equations, constants in ``fp_type``, numbers of the system as ``heyoka.par``."""
+        return self._get(("pieces", fp_type), lambda: ConstrainedPieces(self.system, self.layout, fp_type))
+
+    def geometry(self, fp_type: Any = float) -> Any:
+        """Compiled ``(x, v, r) -> (c(x), G(x) v, K^{-1} G^T M^{-1} r, 1/2 v^T K v)``: ``m + m + N + 1`` outputs."""
+        def build() -> Any:
+            P = self.pieces(fp_type)
+            r = [hy.expression(f"r{k}") for k in range(len(P.c))]
+            outs = P.c + P.Gv + P.correction(r) + [P.energy()]
+            return hy.cfunc(outs, P.x + P.v + r, compact_mode=True, **heyoka_fp_kwargs(fp_type))
+        return self._get(("geometry", fp_type), build)
+
+    def acceleration(self, fp_type: Any = float, stabilised: bool = True) -> Any:
+        """Compiled right-hand side ``(x, v) -> x''`` (parameters as the integrator's), for other steppers and checks."""
+        def build() -> Any:
+            P = self.pieces(fp_type)
+            acc = [rhs for _, rhs in P.equations(stabilised)[len(P.x):]]
+            return hy.cfunc(acc, P.x + P.v, **heyoka_fp_kwargs(fp_type))
+        return self._get(("acceleration", fp_type, stabilised), build)
+
+    @contextmanager
+    def integrator(self, fp_type: Any = float, tol: float | None = None, stabilised: bool = True,
+                   compact_mode: bool = False) -> Iterator[Any]:
+        """Lend a Taylor integrator of the constrained equations; set ``pars`` (:meth:`ConstrainedLayout.pack`) before use."""
+        def build() -> Any:
+            P = self.pieces(fp_type)
+            kw = {} if tol is None else {"tol": fp_type(tol)}
+            return hy.taylor_adaptive(P.equations(stabilised), as_fp(np.zeros(2 * len(P.x)), fp_type),
+                                      compact_mode=compact_mode, **kw,
+                                      **heyoka_fp_kwargs(fp_type))
+
+        with self._lend(("integrator", fp_type, tol, stabilised, compact_mode), build) as ta:
+            yield ta
+
+
+_REGISTRY: dict[Hashable, CompiledConstrained] = {}
+_REGISTRY_LOCK = threading.Lock()
+
+
+def compiled_constrained(system: ConstrainedSystem) -> CompiledConstrained:
+    """The shared :class:`CompiledConstrained` of ``system`` (one per ``system.key`` and pattern of ``K``)."""
+    layout = ConstrainedLayout.of(system)
+    key = (system.key, layout)
+    with _REGISTRY_LOCK:
+        if key not in _REGISTRY:
+            _REGISTRY[key] = CompiledConstrained(system, layout)
+        return _REGISTRY[key]
+
+
+class _Geometry:
+    """The geometry cfunc for one system in the working precision, with the projections built on it."""
+
+    def __init__(self, system: ConstrainedSystem, fp_type: Any) -> None:
+        comp = compiled_constrained(system)
+        self.fp, self.cf = fp_type, comp.geometry(fp_type)
+        self.pars = comp.layout.pack(system, 0.0, fp_type)
+        self.N, self.m = system.ambient_dim, system.n_constraints
+        self.eps = unit_roundoff(fp_type)
+
+    def __call__(self, x: NDArray, v: NDArray, r: NDArray | None = None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """Batched ``(c, G v, correction(r), E)`` for ``x, v`` of shape ``(B, N)``."""
+        B = x.shape[0]
+        r = np.zeros((B, self.m)) if r is None else r
+        args = np.ascontiguousarray(as_fp(np.concatenate([x, v, r], axis=1).T, self.fp))
+        out = self.cf(args, pars=np.ascontiguousarray(np.repeat(self.pars[: self.cf.nparams, None], B, axis=1)))
+        m, N = self.m, self.N
+        return out[:m].T, out[m : 2 * m].T, out[2 * m : 2 * m + N].T, out[-1]
+
+    def project(self, x: NDArray, v: NDArray) -> tuple[NDArray, NDArray]:
+        """Gauss-Newton ``x -= K^{-1} G^T M^{-1} c(x)`` to ``c = 0``, then ``v -= K^{-1} G^T M^{-1} G v``."""
+        x, v = x[None, :], v[None, :]
+        max_steps = 3 + int(np.ceil(-np.log2(self.eps) / 50))
+        for _ in range(max_steps):
+            c, _, _, _ = self(x, v)
+            if float(np.max(np.abs(c.astype(float)))) <= 4 * self.eps:
+                break
+            x = x - self(x, v, c)[2]
+        _, Gv, _, _ = self(x, v)
+        v = v - self(x, v, Gv)[2]
+        return x[0], v[0]
+
+
+def solve_constrained(
+    system: ConstrainedSystem,
+    x0: ArrayLike,
+    v0: ArrayLike,
+    t_final: float,
+    *,
+    fp_type: Any = float,
+    tol: float | None = None,
+    stabilisation: str = "baumgarte",
+    rate: float = 1.0,
+    projection_interval: float = 10.0,
+    compact_mode: bool | None = None,
+    dense: bool = True,
+    t_eval: ArrayLike | None = None,
+    metric: InducedMetric | None = None,
+    throw: bool = True,
+) -> GeodesicSolution:
+    """Integrate the geodesic of ``system`` from ``(x0, v0)`` with heyoka's Taylor method, in ambient coordinates.
+
+    Parameters
+    ----------
+    system
+        The :class:`ConstrainedSystem`.
+    x0, v0
+        Start point (``max_k |c_k(x0)| <= 1e-9``, else ``ValueError``) and
+        velocity (shape ``(N,)``).  Both are completed to the working precision:
+        ``x0`` projected onto ``c = 0``, ``v0`` K-orthogonally onto ``ker G``
+        (so a float64 start is an exact start for a quad-precision run).
+        Check tangency before calling; this projection only removes rounding.
+    t_final
+        Final time, finite and nonzero; negative integrates backward.
+    fp_type
+        ``float`` (default), ``numpy.longdouble``, ``heyoka.real128``,
+        :class:`~manifold.precision.MultiPrecision`, or a name
+        (``"float64"``, ``"longdouble"``, ``"real128"``, ``"mp<bits>"``).
+    tol
+        heyoka's tolerance, in ``(0, 1e-2]``; ``None`` is the machine epsilon of ``fp_type``.
+    stabilisation
+        ``"baumgarte"`` (default), ``"projection"`` or ``"none"`` (module docstring).
+    rate
+        Baumgarte rate ``alpha`` in units of the speed scale ``sqrt(v^T K v / tr K)``, ``> 0``.
+    projection_interval
+        Time between projections for ``"projection"``, ``> 0``.
+    compact_mode
+        heyoka's compact mode; ``None`` (default) chooses by measurement
+        (``benchmarks/method_speed.py``): off for float64 and long double,
+        where unrolled code steps 1.8x faster (its cold compile, 5-25 s, is
+        paid once per ``n`` and mass sparsity: heyoka caches it on disk); on
+        for real128 and :class:`~manifold.precision.MultiPrecision`, where
+        software arithmetic dominates the step and unrolled code at their high
+        Taylor orders only costs compile time (gigabytes at 150 bits).
+    dense
+        Keep the Taylor coefficients of every step, for ``sol(t)`` at any time.
+    t_eval
+        Times (1-d, within ``[0, t_final]``, in integration order) recorded in
+        ``sol.points`` and ``sol.velocities``.
+    metric
+        The :class:`~manifold.metric.InducedMetric` of the same manifold, if it
+        has an atlas: then ``sol.parameters(t)`` reads chart parameters on demand.
+    throw
+        Raise :class:`~manifold.solution.GeodesicIntegrationError` with the
+        partial solution on failure (default), or return it with ``status`` set.
+
+    Returns
+    -------
+    GeodesicSolution
+        With segments in ambient coordinates (``chart = None``).  Energies are
+        recorded at every step and checked against the solvers' bound;
+        ``max_k |c_k|`` likewise (status ``CONSTRAINT_CHECK_FAILED``).
+    """
+    wall0 = time.perf_counter()
+    fp_type = resolve_fp_type(fp_type)
+    t_final = check_real("t_final", t_final, nonzero=True)
+    if tol is not None:
+        tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
+    if stabilisation not in STABILISATIONS:
+        raise ValueError(f"stabilisation must be one of {STABILISATIONS}, got {stabilisation!r}")
+    rate = check_real("rate", rate, positive=True)
+    interval = check_real("projection_interval", projection_interval, positive=True)
+    if compact_mode is None:
+        compact_mode = not (is_double(fp_type) or fp_type is np.longdouble)
+    compact_mode, dense, throw = (check_bool("compact_mode", compact_mode), check_bool("dense", dense),
+                                  check_bool("throw", throw))
+    N = system.ambient_dim
+    x0, v0 = real_array("x0", x0), real_array("v0", v0)
+    for name, arr in (("x0", x0), ("v0", v0)):
+        if arr.shape != (N,):
+            raise ValueError(f"{name} must have shape ({N},), got {arr.shape}")
+    grid = None
+    if t_eval is not None:
+        grid = real_array("t_eval", t_eval)
+        lo, hi = sorted((0.0, t_final))
+        ordered = np.all(np.diff(grid) * np.sign(t_final) >= 0)
+        if grid.ndim != 1 or not np.all((grid >= lo) & (grid <= hi)) or not ordered:
+            raise ValueError(f"t_eval must be a 1-d array of times within [0, {t_final:g}] in integration order, "
+                             f"got {t_eval!r}")
+
+    comp = compiled_constrained(system)
+    t_compile = time.perf_counter()
+    geo = _Geometry(system, fp_type)
+    c0 = np.max(np.abs(geo(x0[None, :].astype(float), v0[None, :])[0].astype(float)))
+    if not c0 <= START_CONSTRAINT_TOLERANCE:
+        raise ValueError(f"x0 is not on the constraint manifold: max_k |c_k(x0)| = {c0:.3g} exceeds "
+                         f"{START_CONSTRAINT_TOLERANCE:g}")
+    x, v = geo.project(as_fp(x0, fp_type), as_fp(v0, fp_type))
+    E0 = geo(x[None, :], v[None, :])[3][0]
+    if not np.isfinite(float(E0)):
+        raise ValueError(f"v0 gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0)):.3g})")
+    K = np.asarray(system.metric_matrix, dtype=float)
+    # the damping term 2 alpha G v must damp in the direction of integration: backward, it flips sign
+    alpha = np.sign(t_final) * rate * np.sqrt(2 * float(E0) / np.trace(K))
+
+    sol = GeodesicSolution(metric, fp_type, f"constrained-taylor ({stabilisation})", (0.0, t_final), {})
+    sol.t_eval = grid
+    sol.energy_times.append(fp_type(0.0))
+    sol.energies.append(E0)
+    eps = 2 * unit_roundoff(fp_type) if tol is None else max(tol, 2 * unit_roundoff(fp_type))
+    sign = float(np.sign(t_final))
+    ends = [t_final] if stabilisation != "projection" else _chunk_ends(t_final, interval)
+    status, message, n_grid, project_seconds = SolveStatus.SUCCESS, "reached t_final", 0, 0.0
+    t = fp_type(0.0)
+    with comp.integrator(fp_type, tol, stabilisation == "baumgarte", compact_mode) as ta:
+        compile_seconds = time.perf_counter() - t_compile
+        pars = comp.layout.pack(system, alpha, fp_type)
+        for end in ends:
+            adv = taylor_advance(ta, t, np.concatenate([x, v]), fp_type(end), pars, dense or grid is not None,
+                                 fp_type)
+            sol.segments.append(Segment(None, t, adv.t, adv.n_steps, adv.dense if dense else None))
+            c, _, _, E = geo(adv.step_states[:, :N], adv.step_states[:, N:])
+            recorded = len(sol.energies)
+            sol.energy_times.extend(adv.step_times)
+            sol.energies.extend(np.atleast_1d(E))
+            if grid is not None:
+                n_grid = sol.record_grid(grid, n_grid, adv, sign, lambda s: (s[:, :N], s[:, N:]))
+            t, x, v = adv.t, adv.y[:N], adv.y[N:]
+            violation = sol.energy_violation(recorded, eps, "ambient coordinates")
+            drift = float(np.max(np.abs(c.astype(float)))) if c.size else 0.0
+            bound = 1e3 * np.sqrt(sol.n_steps + 1) * eps
+            if violation is None and not drift <= bound:
+                status, message = SolveStatus.CONSTRAINT_CHECK_FAILED, (
+                    f"constraint check failed by t = {float(t):.6g}: max_k |c_k| = {drift:.3g} exceeds "
+                    f"1000 sqrt(steps + 1) tol = {bound:.3g}")
+                break
+            if violation is not None:
+                status, message = SolveStatus.ENERGY_CHECK_FAILED, violation
+                break
+            if adv.failure is not None:
+                status, message = SolveStatus.STEPPER_FAILED, f"integration failed at t = {t}: {adv.failure}"
+                break
+            if stabilisation == "projection" and end != ends[-1]:
+                p0 = time.perf_counter()
+                x, v = geo.project(x, v)
+                project_seconds += time.perf_counter() - p0
+    sol.final_state = (None, x, v)
+    sol.status, sol.message = status, message
+    sol.stats = SolverStats(sol.n_steps, 0, 0, compile_seconds, project_seconds, time.perf_counter() - wall0)
+    if status is not SolveStatus.SUCCESS and throw:
+        raise GeodesicIntegrationError(message, sol)
+    return sol
+
+
+def _chunk_ends(t_final: float, interval: float) -> list[float]:
+    """``interval, 2 interval, ..., t_final`` (signed like ``t_final``; no sliver at the end)."""
+    n = max(1, int(np.ceil(abs(t_final) / interval - 1e-9)))
+    return [t_final * (j / n) for j in range(1, n + 1)]

@@ -1,0 +1,196 @@
+"""The Taylor method in hinge coordinates (``free_motion(..., method="hinges")``).
+
+It integrates the Lagrange-multiplier equations of the rod constraints, an
+independent route to the same geodesics as the chart method: the two must
+agree, and each must keep energy and closure.
+"""
+
+from __future__ import annotations
+
+import heyoka as hy
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from linkage import Chain
+from linkage.constraints import ChainSystem, HingeConstraints
+from linkage.motion import free_motion
+from manifold import GeodesicIntegrationError, SolveStatus
+from manifold.constrained import compiled_constrained, solve_constrained
+from manifold.expression_linalg import ldl_solve
+from manifold.precision import MultiPrecision, as_fp
+
+from .conftest import unit_speed_start
+
+
+def _start(chain: Chain, seed: int = 0, pole: bool = False):
+    """A unit-speed start at chart-0 parameters: generic, or exactly on a pole of chart 0 (latitude pi/2).
+
+    At a pole chart 0 has no Jacobian, so the velocity comes from the best chart there.
+    """
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(-1.2, 1.2, chain.n - 2)
+    c = rng.normal(size=chain.n - 2)
+    if not pole:
+        return unit_speed_start(chain, a, c)
+    a[0] = np.pi / 2
+    atlas = chain.atlas()
+    p0 = atlas.get_point(0, a)
+    i, b = atlas.best_chart(p0)
+    v0 = chain.from_point(atlas.charts[i].tangent_vector(b, c))
+    return chain.from_point(p0), v0 / np.sqrt(2 * chain.kinetic_energy(v0))
+
+
+@pytest.mark.parametrize("k, band", [(1, 0), (4, 1), (6, 1), (5, 2), (6, 5)])
+def test_ldl_solve_agrees_with_numpy_and_skips_structural_zeros(k, band):
+    rng = np.random.default_rng(k + 10 * band)
+    A = np.zeros((k, k))
+    for d in range(band + 1):
+        A += np.diag(rng.normal(size=k - d), -d)
+    M = A @ A.T + k * np.eye(k)  # SPD with bandwidth band (lower triangle)
+    rhs = rng.normal(size=k)
+    syms = [[hy.expression(f"m{i}_{j}") if j <= i and abs(i - j) <= band else None for j in range(k)] for i in range(k)]
+    r = [hy.expression(f"r{i}") for i in range(k)]
+    x = ldl_solve(syms, r)
+    names = [f"m{i}_{j}" for i in range(k) for j in range(k) if syms[i][j] is not None] + [f"r{i}" for i in range(k)]
+    cf = hy.cfunc(x, [hy.expression(nm) for nm in names])
+    vals = [M[i, j] for i in range(k) for j in range(k) if syms[i][j] is not None] + list(rhs)
+    assert np.allclose(cf(np.array(vals)), np.linalg.solve(M, rhs), rtol=1e-13, atol=1e-13)
+
+
+@given(n=st.integers(3, 8), seed=st.integers(0, 10**6), densities=st.booleans())
+@settings(max_examples=15)
+def test_symbolic_equations_agree_with_the_numpy_multiplier_solve(n, seed, densities):
+    """The compiled acceleration ``K^{-1} G^T M^{-1} (-G' v)`` against ``HingeConstraints`` (numpy, dense solve)."""
+    rng = np.random.default_rng(seed)
+    chain = Chain(n, rng.uniform(n - 2 + 1e-3, n - 1e-3), hinge_masses=rng.uniform(0.1, 10, n - 1),
+                  rod_densities=rng.uniform(0, 3, n) if densities else 0.0)
+    h0, v0 = _start(chain, seed)
+    x, v = chain.to_point(h0), chain.to_point(v0)
+    ref = HingeConstraints(chain)
+    system = ChainSystem(chain)
+    comp = compiled_constrained(system)
+    pars = comp.layout.pack(system, 0.0, float)
+    r = rng.normal(size=n)
+    out = comp.geometry(float)(np.concatenate([x, v, r]), pars=pars[: comp.geometry(float).nparams])
+    c, Gv, d, E = out[:n], out[n : 2 * n], out[2 * n : -1], out[-1]
+    assert np.allclose(c, ref.constraints(x), atol=1e-14)
+    assert np.allclose(Gv, ref.jacobian(x) @ v, atol=1e-12)
+    assert np.allclose(d, ref.min_norm_correction(ref.jacobian(x), r), rtol=1e-10, atol=1e-11)
+    assert np.isclose(E, 0.5 * v @ ref.K @ v, rtol=1e-14)
+    # the integrator's right-hand side x''
+    P = comp.pieces(float)
+    rhs = hy.cfunc([e for _, e in P.equations(False)][len(x):], P.x + P.v)
+    acc = rhs(np.concatenate([x, v]), pars=pars[: rhs.nparams])
+    assert np.allclose(acc, ref.acceleration(x, v), rtol=1e-10, atol=1e-11)
+
+
+@pytest.mark.parametrize("n, pole, masses", [(3, False, False), (4, True, False), (5, False, True), (6, True, True),
+                                             (7, False, False), (8, True, True)])
+def test_hinge_method_agrees_with_the_chart_method(n, pole, masses):
+    kw = {"hinge_masses": np.linspace(0.5, 2.0, n - 1), "rod_densities": 0.3} if masses else {}
+    chain = Chain(n, n - 1.3, **kw)
+    h0, v0 = _start(chain, seed=n, pole=pole)
+    T, ts = 10.0, np.linspace(0, 10.0, 41)
+    # compact mode: one cold compile per (n, mass sparsity) in seconds, not tens of seconds (CI starts cold)
+    hinges = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts, compact_mode=True)
+    charts = free_motion(chain, h0, v0, T, method="charts", t_eval=ts)
+    assert hinges.success and charts.success
+    assert np.abs(hinges.hinges - charts.hinges).max() <= 1e-10
+    assert np.abs(hinges.velocities - charts.velocities).max() <= 1e-10
+    assert hinges.relative_energy_error <= 1e-13
+    assert hinges.closure_residuals.max() <= 1e-14
+
+
+def test_energy_and_closure_over_a_long_run():
+    chain = Chain(4, 2.5)
+    h0, v0 = _start(chain, seed=3)
+    m = free_motion(chain, h0, v0, 1000.0, method="hinges", dense=False, t_eval=np.linspace(0, 1000, 101))
+    assert m.relative_energy_error <= 1e-13
+    assert m.closure_residuals.max() <= 1e-14
+    assert np.abs(m.energies - m.energies[0]).max() <= 1e-13 * m.energies[0]
+
+
+@pytest.mark.parametrize("stabilisation", ["baumgarte", "projection"])
+def test_backward_run_returns_to_the_start(stabilisation):
+    chain = Chain(5, 3.3, hinge_masses=[1.0, 2.0, 0.5, 1.5])
+    h0, v0 = _start(chain, seed=7)
+    fwd = free_motion(chain, h0, v0, 30.0, method="hinges", stabilisation=stabilisation, projection_interval=7.0)
+    h1, w1 = fwd.solution.end_state()
+    back = free_motion(chain, chain.from_point(h1.astype(float)), chain.from_point(w1.astype(float)), -30.0,
+                       method="hinges", stabilisation=stabilisation, projection_interval=7.0)
+    h2, w2 = back.solution.end_state()
+    assert np.abs(chain.from_point(h2.astype(float)) - h0).max() <= 1e-11
+    assert np.abs(chain.from_point(w2.astype(float)) - v0).max() <= 1e-11
+
+
+def test_stabilisations_agree_and_none_drifts_more():
+    chain = Chain(4, 2.6)
+    h0, v0 = _start(chain, seed=1)
+    ts = np.linspace(0, 200, 11)
+    runs = {s: free_motion(chain, h0, v0, 200.0, method="hinges", stabilisation=s, t_eval=ts, throw=False)
+            for s in ("baumgarte", "projection", "none")}
+    assert runs["baumgarte"].success and runs["projection"].success
+    assert np.abs(runs["baumgarte"].hinges - runs["projection"].hinges).max() <= 1e-9
+    assert runs["baumgarte"].closure_residuals.max() <= 1e-14
+    assert runs["none"].closure_residuals.max() > runs["baumgarte"].closure_residuals.max()
+
+
+@pytest.mark.parametrize("fp_type, T", [(np.longdouble, 5.0), ("real128", 2.0), (MultiPrecision(150), 1.0)])
+def test_higher_precisions_agree_with_float64_and_keep_energy(fp_type, T):
+    chain = Chain(4, 2.7, hinge_masses=[1.0, 3.0, 0.7])
+    h0, v0 = _start(chain, seed=5)
+    ref = free_motion(chain, h0, v0, T, method="hinges")
+    hi = free_motion(chain, h0, v0, T, method="hinges", fp_type=fp_type)
+    p_ref, _ = ref.solution.end_state()
+    p_hi, _ = hi.solution.end_state()
+    assert np.abs(p_hi.astype(float) - p_ref).max() <= 1e-12
+    eps = {np.longdouble: 2.0**-64, "real128": 2.0**-113}.get(fp_type, 2.0**-150)
+    assert hi.solution.relative_energy_error <= 1e3 * eps
+    fp, system = hi.solution.fp_type, ChainSystem(chain)
+    comp = compiled_constrained(system)
+    geo = comp.geometry(fp)
+    args = as_fp(np.concatenate([p_hi, np.zeros(len(p_hi) + chain.n, dtype=p_hi.dtype)]), fp)
+    c = geo(args, pars=comp.layout.pack(system, 0.0, fp)[: geo.nparams])[: chain.n]
+    assert max(abs(float(ck)) for ck in c) <= 1e3 * eps  # closed in the working precision
+
+
+def test_dense_output_grid_and_chart_parameters_on_demand():
+    chain = Chain(4, 2.4)
+    h0, v0 = _start(chain, seed=2, pole=True)
+    ts = np.linspace(0, 15, 31)
+    m = free_motion(chain, h0, v0, 15.0, method="hinges", t_eval=ts)
+    p, v = m.solution(ts)
+    assert np.abs(p - m.solution.points).max() <= 1e-15
+    charts, a, c = m.solution.parameters(ts)
+    atlas = chain.atlas()
+    for i, ai, ci, pi, vi in zip(charts, a, c, p, v):
+        assert np.abs(atlas.get_point(i, ai) - pi).max() <= 1e-12
+        assert np.abs(atlas.charts[i].tangent_vector(ai, ci) - vi).max() <= 1e-11
+    assert m.n_switches == 0 and m.chart_ids == []
+
+
+def test_bad_options_are_refused():
+    chain = Chain(4, 2.5)
+    h0, v0 = _start(chain)
+    with pytest.raises(ValueError, match="method must be one of"):
+        free_motion(chain, h0, v0, 1.0, method="hinge")
+    with pytest.raises(ValueError, match="stabilisation must be one of"):
+        free_motion(chain, h0, v0, 1.0, method="hinges", stabilisation="Baumgarte")
+    for kw, name in [({"rate": 0.0}, "rate"), ({"rate": np.nan}, "rate"), ({"tol": 0.5}, "tol"),
+                     ({"projection_interval": -1.0}, "projection_interval")]:
+        with pytest.raises(ValueError, match=name):
+            free_motion(chain, h0, v0, 1.0, method="hinges", **kw)
+    with pytest.raises(TypeError, match="dense"):
+        free_motion(chain, h0, v0, 1.0, method="hinges", dense=1)
+    with pytest.raises(TypeError):
+        free_motion(chain, h0, v0, 1.0, method="hinges", q_out=0.3)  # a chart option
+    system = ChainSystem(chain)
+    x0, w0 = chain.to_point(h0), chain.to_point(v0)
+    with pytest.raises(ValueError, match="not on the constraint manifold"):
+        solve_constrained(system, x0 + 1e-6, w0, 1.0)
+    with pytest.raises(ValueError, match=r"x0 must have shape \(6,\)"):
+        solve_constrained(system, x0[:4], w0, 1.0)
+    with pytest.raises(ValueError, match="t_eval"):
+        solve_constrained(system, x0, w0, 1.0, t_eval=[0.5, 2.0])
