@@ -14,10 +14,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import solve_ivp
 
 from linkage import Chain
 from linkage.ambient import integrate_ambient
+from linkage.constraints import ChainSystem
+from linkage.motion import free_motion
 from manifold import GeodesicIntegrationError, ScipyStepper, compiled, solve_chart_exp_ode
+from manifold.constrained import compiled_constrained
 
 from ..baselines.rattle import integrate_rattle
 from ..baselines.seed_geodesics import integrate_seed_rk4
@@ -100,6 +104,34 @@ def scipy_atlas(chain: Chain, p0, v0, T, ts, rtol, method: str = "DOP853") -> Ru
     except RuntimeError as err:
         return Run(name, rtol, time.perf_counter() - t0, ts[:0], np.zeros((0, chain.n - 1)), np.zeros(0), str(err))
     return from_solution(name, rtol, chain, sol, time.perf_counter() - t0, ts)
+
+
+def hinge_taylor(chain: Chain, p0, v0, T, ts, tol) -> Run:
+    """Method 5 (ours): heyoka Taylor in hinge coordinates, Baumgarte-stabilised rod constraints."""
+    h0, w0 = chain.from_point(p0), chain.from_point(v0)
+    free_motion(chain, h0, w0, min(T, 0.1), method="hinges", tol=tol)  # compile outside the timing
+    m, wall = _timed(lambda: free_motion(chain, h0, w0, T, method="hinges", tol=tol, t_eval=ts, dense=False))
+    return Run("hinge Taylor (ours)", tol, wall, m.times, m.hinges, m.energies, None, m.n_steps)
+
+
+def scipy_hinges(chain: Chain, p0, v0, T, ts, rtol, method: str = "DOP853") -> Run:
+    """Method 6: scipy ``solve_ivp`` on the hinge method's compiled right-hand side (same equations, same Baumgarte term)."""
+    system = ChainSystem(chain)
+    comp = compiled_constrained(system)
+    acc = comp.acceleration(float)
+    alpha = np.sqrt(2 * chain.kinetic_energy(chain.from_point(v0)) / np.trace(chain.ambient_metric))
+    pars = comp.layout.pack(system, alpha, float)[: acc.nparams]
+    N = system.ambient_dim
+
+    def rhs(_t, y):
+        return np.concatenate([y[N:], acc(y, pars=pars)])
+
+    sol, wall = _timed(lambda: solve_ivp(rhs, (0.0, T), np.concatenate([p0, v0]), method=method, rtol=rtol,
+                                         atol=rtol, t_eval=ts))
+    hinges = chain.from_point(sol.y[:N].T)
+    energy = chain.kinetic_energy(chain.from_point(sol.y[N:].T))
+    return Run(f"scipy {method} hinges", rtol, wall, sol.t, hinges, energy,
+               None if sol.success else sol.message, sol.nfev)
 
 
 def ambient(chain: Chain, p0, v0, T, ts, rtol, project: bool = False) -> Run:

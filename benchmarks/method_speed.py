@@ -1,0 +1,171 @@
+"""Which method when: the hinge-coordinate Taylor method against the chart method and DOP853, side by side.
+
+Run ``python -m benchmarks.method_speed [--quick]``.  Prints, from one run on
+this machine (ratios are the numbers to compare; absolute times are noise):
+
+1. the hinge method against scipy's DOP853 on the *same compiled* hinge
+   right-hand side, wall-time ratio at equal hinge error over T = 20, for
+   n = 4, 6, 8, 10 (log-log interpolation of our work-precision curve);
+2. the chart method against DOP853 on the chart right-hand side (same atlas
+   loop and switch rule), n = 4 and 8;
+3. real128 over T = 100 at n = 4: hinge and chart wall times;
+4. the hinge method in float64 at its default tolerance: error against a
+   long-double chart reference over T = 20; relative energy error and its
+   log-log growth slope over T = 1e4; rod-length error;
+5. compact mode on and off: cold compile and warm time per unit time.
+
+Errors are max |hinge - reference| over 101 samples; the reference is the
+chart method in long double (an independent route).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import heyoka as hy
+import numpy as np
+
+from linkage.motion import free_motion
+from manifold.constrained import compiled_constrained
+from linkage.constraints import ChainSystem
+
+from .study import methods as M
+from .study.experiments import errors, generic_start, reference, speed_ratio_at_equal_error
+
+TOLS = [1e-8, 1e-10, 1e-12, 1e-14, None]
+RTOLS = [1e-8, 1e-10, 1e-12, 1e-13]
+
+
+def _rows(fns: dict, chain, p0, v0, T, ts, ref, repeats: int = 2) -> list[dict]:
+    rows = []
+    for name, (fn, knobs) in fns.items():
+        for knob in knobs:
+            runs = [fn(chain, p0, v0, T, ts, knob) for _ in range(repeats)]
+            rows.append({"method": name, "knob": knob, "wall": min(r.wall for r in runs), "failed": runs[-1].failed,
+                         "steps": runs[-1].steps, **errors(runs[-1], ref, chain)})
+    return rows
+
+
+def _geomean(ratios: list[tuple[float, float]]) -> float:
+    return float(np.exp(np.mean(np.log([r for _, r in ratios])))) if ratios else float("nan")
+
+
+def hinge_vs_dop853(ns: list[int], T: float = 20.0, repeats: int = 2) -> dict:
+    """Section 1: hinge Taylor vs DOP853 on the same compiled hinge right-hand side."""
+    out = {}
+    for n in ns:
+        chain, p0, v0 = generic_start(n)
+        ts = np.linspace(0, T, 101)
+        ref = reference(chain, p0, v0, T, ts, fp_type=np.longdouble)
+        rows = _rows({"hinge Taylor (ours)": (M.hinge_taylor, TOLS), "scipy DOP853 hinges": (M.scipy_hinges, RTOLS)},
+                     chain, p0, v0, T, ts, ref, repeats)
+        ratios = speed_ratio_at_equal_error(rows, "hinge Taylor (ours)", "scipy DOP853 hinges")
+        out[n] = {"rows": rows, "ratios": ratios, "geomean": _geomean(ratios)}
+        print(f"  n = {n:2d}: DOP853 / hinge Taylor at equal error: "
+              + ", ".join(f"{r:.1f}x at {e:.0e}" for e, r in ratios) + f"  (geometric mean {out[n]['geomean']:.1f}x)")
+        for r in rows:
+            print(f"      {r['method']:22s} knob {str(r['knob']):6s} wall {r['wall']:.3f} s  steps {r['steps']:7d}"
+                  f"  error {r['hinge']:.1e}  energy {r['energy']:.1e}")
+    return out
+
+
+def chart_vs_dop853(ns: list[int], T: float = 20.0, repeats: int = 2) -> dict:
+    """Section 2: chart Taylor vs DOP853 on the chart right-hand side."""
+    out = {}
+    for n in ns:
+        chain, p0, v0 = generic_start(n)
+        ts = np.linspace(0, T, 101)
+        ref = reference(chain, p0, v0, T, ts, fp_type=np.longdouble)
+        M.atlas_taylor(chain, p0, v0, 0.5, ts[ts <= 0.5], None)  # compile outside the timings
+        rows = _rows({"atlas Taylor (ours)": (M.atlas_taylor, [1e-9, 1e-12, None]),
+                      "scipy DOP853 atlas": (M.scipy_atlas, RTOLS)}, chain, p0, v0, T, ts, ref, repeats)
+        ratios = speed_ratio_at_equal_error(rows, "atlas Taylor (ours)", "scipy DOP853 atlas")
+        out[n] = {"rows": rows, "ratios": ratios, "geomean": _geomean(ratios)}
+        print(f"  n = {n:2d}: DOP853 / chart Taylor at equal error: "
+              + ", ".join(f"{r:.1f}x at {e:.0e}" for e, r in ratios) + f"  (geometric mean {out[n]['geomean']:.1f}x)")
+    return out
+
+
+def quad_precision(T: float = 100.0) -> dict:
+    """Section 3: real128 at n = 4 over ``T``, both methods (compiles excluded)."""
+    chain, p0, v0 = generic_start(4)
+    h0, w0 = chain.from_point(p0), chain.from_point(v0)
+    out = {}
+    for method in ("hinges", "charts"):
+        free_motion(chain, h0, w0, 0.01, method=method, fp_type=hy.real128)
+        t0 = time.perf_counter()
+        m = free_motion(chain, h0, w0, T, method=method, fp_type=hy.real128, dense=False)
+        out[method] = {"wall": time.perf_counter() - t0, "energy": m.relative_energy_error, "steps": m.n_steps}
+        print(f"  {method:6s}: {out[method]['wall']:.2f} s, {m.n_steps} steps, energy error {m.relative_energy_error:.1e}")
+    p_h = free_motion(chain, h0, w0, T, method="hinges", fp_type=hy.real128, dense=False).solution.end_state()[0]
+    p_c = free_motion(chain, h0, w0, T, method="charts", fp_type=hy.real128, dense=False).solution.end_state()[0]
+    out["agreement"] = float(np.max(np.abs((p_h - p_c).astype(float))))
+    print(f"  hinge and chart end points differ by {out['agreement']:.1e}")
+    return out
+
+
+def float64_accuracy(T_short: float = 20.0, T_long: float = 1e4) -> dict:
+    """Section 4: the hinge method's default-tolerance accuracy, energy growth and closure."""
+    chain, p0, v0 = generic_start(4, seed=2)
+    ts = np.linspace(0, T_short, 101)
+    ref = reference(chain, p0, v0, T_short, ts, fp_type=np.longdouble)
+    err = errors(M.hinge_taylor(chain, p0, v0, T_short, ts, None), ref, chain)
+    tl = np.concatenate([[0.0], np.geomspace(1.0, T_long, 60)])
+    m = free_motion(chain, chain.from_point(p0), chain.from_point(v0), T_long, method="hinges", t_eval=tl,
+                    dense=False)
+    energy = np.maximum.accumulate(np.abs(m.energies / m.energies[0] - 1))
+    sel = tl >= T_long / 1000
+    slope = float(np.polyfit(np.log(tl[sel]), np.log(np.maximum(energy[sel], 1e-17)), 1)[0])
+    out = {"error_T20": err["hinge"], "energy_T_long": float(m.relative_energy_error), "slope": slope,
+           "rod_error": float(m.closure_residuals.max()), "steps": m.n_steps, "wall": m.solution.stats.wall_seconds}
+    print(f"  error over T = {T_short:g}: {out['error_T20']:.1e}; energy error over T = {T_long:g}: "
+          f"{out['energy_T_long']:.1e} (log-log slope {slope:.2f}); rod-length error {out['rod_error']:.1e}; "
+          f"{m.n_steps} steps in {out['wall']:.1f} s")
+    return out
+
+
+def compact_modes(ns: list[int], T: float = 100.0) -> dict:
+    """Section 5: compact mode on/off, cold compile (disk cache off) and warm time per unit time."""
+    hy.llvm_state.set_diskcache_enabled(False)
+    out = {}
+    try:
+        for n in ns:
+            chain, p0, v0 = generic_start(n)
+            h0, w0 = chain.from_point(p0), chain.from_point(v0)
+            for compact in (False, True):
+                compiled_constrained(ChainSystem(chain)).clear()
+                hy.llvm_state.clear_memcache()
+                t0 = time.perf_counter()
+                free_motion(chain, h0, w0, 0.01, method="hinges", compact_mode=compact)
+                cold = time.perf_counter() - t0
+                t0 = time.perf_counter()
+                m = free_motion(chain, h0, w0, T, method="hinges", compact_mode=compact, dense=False)
+                warm = (time.perf_counter() - t0) / T
+                out[(n, compact)] = {"compile": cold, "per_time": warm, "steps": m.n_steps}
+                print(f"  n = {n:2d} compact {str(compact):5s}: cold compile {cold:5.2f} s, "
+                      f"{1e3 * warm:.2f} ms per unit time ({m.n_steps} steps)")
+    finally:
+        hy.llvm_state.set_diskcache_enabled(True)
+    return out
+
+
+def main(quick: bool = False) -> dict:
+    ns = [4, 6] if quick else [4, 6, 8, 10]
+    print("1. hinge Taylor vs DOP853 on the same compiled hinge right-hand side, T = 20")
+    res = {"hinge_vs_dop853": hinge_vs_dop853(ns)}
+    print("2. chart Taylor vs DOP853 on the chart right-hand side, T = 20")
+    res["chart_vs_dop853"] = chart_vs_dop853([4] if quick else [4, 8])
+    print(f"3. real128, n = 4, T = {10 if quick else 100}")
+    res["quad"] = quad_precision(10.0 if quick else 100.0)
+    print("4. hinge method, float64, default tolerance")
+    res["accuracy"] = float64_accuracy(T_long=1e3 if quick else 1e4)
+    print("5. compact mode")
+    res["compact"] = compact_modes([4] if quick else [4, 8])
+    return res
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.method_speed", description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="n = 4, 6 and short horizons (minutes)")
+    main(parser.parse_args().quick)
