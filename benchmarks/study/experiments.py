@@ -71,6 +71,8 @@ def default_methods(n: int, quick: bool) -> dict:
         "atlas Taylor (ours)": (M.atlas_taylor, tols),
         "single chart Taylor": (M.single_chart_taylor, tols[-1:]),
         "scipy DOP853 atlas": (lambda *a: M.scipy_atlas(*a, method="DOP853"), rtols),
+        "hinge Taylor (ours)": (M.hinge_taylor, tols),
+        "scipy DOP853 hinges": (M.scipy_hinges, rtols),
         "scipy RK45 atlas": (lambda *a: M.scipy_atlas(*a, method="RK45"), [1e-6, 1e-8, 1e-10] if not quick else [1e-8]),
         "scipy Radau atlas": (lambda *a: M.scipy_atlas(*a, method="Radau"), [1e-6, 1e-8] if not quick else []),
         "ambient DOP853": (M.ambient, rtols),
