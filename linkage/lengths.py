@@ -7,10 +7,10 @@ A chain has rods of lengths ``l_1 .. l_n > 0``, pinned at ``p_0 = 0`` and
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from manifold.validation import check_real
 
 
 def validate_lengths(lengths: ArrayLike, L: object) -> tuple[NDArray, float]:
@@ -21,9 +21,12 @@ def validate_lengths(lengths: ArrayLike, L: object) -> tuple[NDArray, float]:
     finite number ``> 0``.
     """
     try:
-        ls = np.asarray(lengths, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"lengths must be a sequence of finite numbers > 0, got {lengths!r}") from None
+        raw = np.asarray(lengths)
+    except ValueError:  # a ragged nested sequence
+        raw = np.asarray(None)
+    if raw.dtype.kind not in "iuf":  # strings, booleans, complex or ragged input are not lengths
+        raise ValueError(f"lengths must be a sequence of finite numbers > 0, got {lengths!r}")
+    ls = raw.astype(float)
     if ls.ndim != 1 or ls.size < 2:
         raise ValueError(f"lengths must be a 1-D sequence of at least 2 link lengths, got shape {ls.shape}")
     bad = ~(np.isfinite(ls) & (ls > 0))
@@ -31,11 +34,9 @@ def validate_lengths(lengths: ArrayLike, L: object) -> tuple[NDArray, float]:
         k = int(np.argmax(bad))
         raise ValueError(f"lengths must be finite and > 0, got lengths[{k}] = {float(ls[k])!r}")
     try:
-        Lf = float(L)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ValueError(f"L (base length) must be a finite number > 0, got {L!r}") from None
-    if not (math.isfinite(Lf) and Lf > 0):
-        raise ValueError(f"L (base length) must be a finite number > 0, got L = {L!r}")
+        Lf = check_real("L", L, positive=True)  # refuses strings and booleans, which float() would take
+    except ValueError:
+        raise ValueError(f"L (base length) must be a finite number > 0, got L = {L!r}") from None
     return ls, Lf
 
 
