@@ -1,6 +1,7 @@
-"""Plain geometry of a closed chain of unit rods, shared by charts and linkage.
+"""Plain geometry of a closed chain, shared by charts and linkage.
 
-Conventions: a chain of ``n`` unit rods from ``p_0 = 0`` to ``p_n = L`` (real).
+Conventions: a chain of ``n`` rods from ``p_0 = 0`` to ``p_n = L`` (real); unit
+rods unless a function takes ``lengths``.
 A configuration is the complex array of interior hinges ``p_1 .. p_{n-1}``
 (shape ``(..., n-1)``).  As a point of the embedding space ``R^(2(n-1))`` it is
 the interleaved real vector ``(x_1, y_1, ..., x_{n-1}, y_{n-1})``.
@@ -65,9 +66,9 @@ def hinges_from_rods(rods: ArrayLike) -> NDArray:
     return np.cumsum(np.asarray(rods), axis=-1)[..., :-1]
 
 
-def closure_residual(hinges: ArrayLike, L: float) -> NDArray:
-    """``max_k | |e_k| - 1 |``: 0 for a configuration of the closed chain."""
-    return np.max(np.abs(np.abs(rod_vectors(hinges, L)) - 1.0), axis=-1)
+def closure_residual(hinges: ArrayLike, L: float, lengths: ArrayLike = 1.0) -> NDArray:
+    """``max_k | |e_k| - l_k |``: 0 for a configuration of the closed chain of rods ``lengths`` (default unit rods)."""
+    return np.max(np.abs(np.abs(rod_vectors(hinges, L)) - np.asarray(lengths, dtype=float)), axis=-1)
 
 
 def validate_permutation(order: ArrayLike, n: int) -> NDArray:

@@ -1,18 +1,30 @@
-"""The physical chain: unit rods, hinge masses and rod densities, configurations.
+"""The physical chain: rods of any lengths, hinge masses and rod densities, configurations.
 
-A :class:`Chain` of ``n`` unit rods is pinned at ``p_0 = 0`` and ``p_n = L``.
-Configurations are complex arrays of the interior hinges ``p_1 .. p_{n-1}``
+A :class:`Chain` of ``n`` rods of lengths ``l_1 .. l_n`` (unit rods if given as
+an integer ``n``) is pinned at ``p_0 = 0`` and ``p_n = L``.  Configurations are
+complex arrays of the interior hinges ``p_1 .. p_{n-1}`` with ``|p_k - p_{k-1}| = l_k``
 (or, equivalently, rod angles ``theta_1 .. theta_n`` with
-``sum_k e^{i theta_k} = L``).  Kinetic energy (dynamics seed, section 1)::
+``sum_k l_k e^{i theta_k} = L``).  A rod of uniform line density ``lambda_k`` has
+mass ``lambda_k l_k``; its point at ``s in [0, 1]`` is ``(1-s) p_{k-1} + s p_k``,
+so the kinetic energy (dynamics seed, section 1) is::
 
-    T = 1/2 sum_j M_j |p_j'|^2 + 1/2 sum_k int_0^1 lambda_k |(1-s) p_{k-1}' + s p_k'|^2 ds
+    T = 1/2 sum_j M_j |p_j'|^2 + 1/2 sum_k lambda_k l_k int_0^1 |(1-s) p_{k-1}' + s p_k'|^2 ds
       = 1/2 v^T (A (x) I_2) v,
 
-with ``A`` tridiagonal: ``A_jj = M_j + (lambda_j + lambda_{j+1}) / 3`` and
-``A_{j,j+1} = lambda_{j+1} / 6``; ``v`` the interleaved real hinge velocity.
+with ``A`` tridiagonal: ``A_jj = M_j + (lambda_j l_j + lambda_{j+1} l_{j+1}) / 3`` and
+``A_{j,j+1} = lambda_{j+1} l_{j+1} / 6``; ``v`` the interleaved real hinge velocity.
+
+The configuration space (:meth:`Chain.topology`) is a sphere ``S^(n-2)`` for
+unit rods with ``n - 2 < L < n``: there the suspension charts of ``charts/``
+give an atlas (:meth:`Chain.atlas`).  Elsewhere it may be a pair of tori, a
+surface of higher genus, singular, or empty (refused); its free motion is
+integrated in hinge coordinates (``free_motion(..., method="hinges")``), and
+:meth:`Chain.diagonal_space` parameterises it by the diagonals ``|p_k|``.
 """
 
 from __future__ import annotations
+
+import numbers
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -28,9 +40,13 @@ from charts.chain_geometry import (
 )
 from manifold import InducedMetric
 
+from .diagonals import DiagonalSpace, diagonals, from_diagonals
+from .lengths import validate_lengths
+from .topology import MAX_RODS, RTOL, Topology, longest_side, topology
+
 
 class ConfigurationError(ValueError):
-    """A configuration that is not a closed chain of unit rods (or has the wrong shape)."""
+    """A configuration that is not a closed chain of the chain's rods (or has the wrong shape)."""
 
 
 def _positive_vector(name: str, value: ArrayLike | float, size: int, allow_zero: bool) -> NDArray:
@@ -46,50 +62,130 @@ def _positive_vector(name: str, value: ArrayLike | float, size: int, allow_zero:
     return v
 
 
+def _nonempty_chain(lengths: int | ArrayLike, L: object) -> tuple[NDArray, float]:
+    """Validated ``(lengths, L)``: an integer ``n >= 2`` means ``n`` unit rods; an empty space is refused."""
+    if np.ndim(lengths) == 0:
+        if isinstance(lengths, (bool, np.bool_)) or not isinstance(lengths, numbers.Integral) or lengths < 2:
+            raise ValueError(f"lengths must be an integer n >= 2 (n unit rods) or a sequence of at least 2 "
+                             f"link lengths, got {lengths!r}")
+        lengths = np.ones(int(lengths))
+    ls, L = validate_lengths(lengths, L)
+    j, excess = longest_side(ls, L)
+    P = float(ls.sum()) + L
+    if excess > RTOL * P:
+        name = "L" if j == ls.size else f"lengths[{j}]"
+        side = L if j == ls.size else float(ls[j])
+        raise ValueError(
+            f"the configuration space is empty: {name} = {side!r} exceeds the sum {P - side:.17g} of the other "
+            f"sides of the polygon (l_1, ..., l_n, L), so no configuration closes; every side must be at most "
+            f"half the perimeter, here {P / 2:.17g}")
+    return ls, L
+
+
 class Chain:
-    """A planar chain of ``n`` unit rods pinned at ``0`` and ``L``, ``n - 2 < L < n``.
+    """A planar chain of rods of lengths ``l_1 .. l_n`` pinned at ``0`` and ``L``.
 
     Parameters
     ----------
-    n
-        Number of rods, an integer ``>= 2``.
+    lengths
+        Either an integer ``n >= 2`` (``n`` unit rods: ``Chain(n, L)``) or a
+        sequence of ``n >= 2`` finite lengths ``l_1 .. l_n > 0``.
     L
-        Distance between the pins, finite with ``n - 2 < L < n`` (where the
-        configuration space is the sphere ``S^(n-2)``).
+        Distance between the pins, finite and ``> 0``.  Refused if the
+        configuration space is empty (some side of the polygon
+        ``(l_1, ..., l_n, L)`` longer than the sum of the others); any other
+        ``L`` is a chain (:meth:`topology` says what its space is).
     hinge_masses
         Masses ``M_1 .. M_{n-1}`` of the interior hinges (scalar or length
         ``n - 1``, each ``> 0``); default 1 (the seed's model).
     rod_densities
         Uniform line densities ``lambda_1 .. lambda_n`` of the rods (scalar or
-        length ``n``, each ``>= 0``); default 0 (massless rods).
+        length ``n``, each ``>= 0``; rod ``k`` has mass ``lambda_k l_k``);
+        default 0 (massless rods).
+
+    Attributes
+    ----------
+    lengths
+        ``l_1 .. l_n`` (read-only float array).
+    n, L
+        Number of rods and pin distance.
+    unit_rods
+        Whether every ``l_k == 1`` (given as an integer ``n`` or as lengths).
     """
 
     def __init__(
         self,
-        n: int,
+        lengths: int | ArrayLike,
         L: float,
         hinge_masses: ArrayLike | float = 1.0,
         rod_densities: ArrayLike | float = 0.0,
     ) -> None:
-        self.n, self.L = validate_chain(n, L)
+        self.lengths, self.L = _nonempty_chain(lengths, L)
+        self.lengths.flags.writeable = False
+        self.n = self.lengths.size
+        self.unit_rods = bool(np.all(self.lengths == 1.0))
         self.hinge_masses = _positive_vector("hinge_masses", hinge_masses, self.n - 1, allow_zero=False)
         self.rod_densities = _positive_vector("rod_densities", rod_densities, self.n, allow_zero=True)
+        self._topology: Topology | None = None
 
     def __repr__(self) -> str:
-        return f"Chain(n={self.n}, L={self.L!r})"
+        if self.unit_rods:
+            return f"Chain(n={self.n}, L={self.L!r})"
+        return f"Chain(lengths={tuple(float(v) for v in self.lengths)}, L={self.L!r})"
 
     @property
     def dim(self) -> int:
-        """Dimension ``n - 2`` of the configuration space."""
+        """Dimension ``n - 2`` of the configuration space (where it is a manifold)."""
         return self.n - 2
+
+    # -- topology and diagonals ---------------------------------------------------
+    def topology(self) -> Topology:
+        """What the configuration space is (:func:`linkage.topology.topology`; ``n <= 20``)."""
+        if self._topology is None:
+            self._topology = topology(self.lengths, self.L)
+        return self._topology
+
+    def check_generic(self) -> None:
+        """Raise ``ValueError`` unless the configuration space is a smooth manifold (generic lengths).
+
+        Generic means no signed sum ``sum_k eps_k l_k`` equals ``L``; otherwise
+        the collinear configurations ``e_k = eps_k l_k`` are singular points
+        (the constraint Jacobian loses rank there), and the message names them.
+        Unit rods with ``n - 2 < L < n`` are generic without enumerating subsets.
+        """
+        if self.has_atlas:
+            return
+        if self.n > MAX_RODS:
+            raise ValueError(f"deciding whether lengths are generic enumerates 2^n signed sums: n must be <= "
+                             f"{MAX_RODS}, got n = {self.n}")
+        t = self.topology()
+        if not t.generic:
+            raise ValueError(
+                f"free motion needs a smooth configuration space, and this one is not: {t.summary()} "
+                "(there sum_k eps_k l_k = L; move L or a length off every such signed sum)")
+
+    def diagonal_space(self) -> DiagonalSpace:
+        """The diagonal polytope ``D`` of free diagonals ``(|p_2|, ..., |p_{n-1}|)`` (``n >= 3``)."""
+        return DiagonalSpace(self.lengths, self.L)
+
+    def from_diagonals(self, x: ArrayLike, flips: ArrayLike) -> NDArray:
+        """Complex hinges ``(..., n-1)`` with free diagonals ``x`` ``(..., n-2)`` and flips ``(..., n-1)``.
+
+        See :func:`linkage.diagonals.from_diagonals`.
+        """
+        return from_diagonals(self.lengths, self.L, x, flips)
+
+    def diagonals(self, hinges: ArrayLike) -> tuple[NDArray, NDArray]:
+        """``(x, flips)`` of closed configurations (:func:`linkage.diagonals.diagonals`)."""
+        return diagonals(self.lengths, self.L, self.as_hinges(hinges))
 
     # -- mass model ---------------------------------------------------------------
     @property
     def mass_matrix(self) -> NDArray:
-        """Tridiagonal ``(n-1, n-1)`` matrix ``A`` of the hinge kinetic energy."""
-        lam = self.rod_densities
-        A = np.diag(self.hinge_masses + (lam[:-1] + lam[1:]) / 3)
-        off = lam[1:-1] / 6
+        """Tridiagonal ``(n-1, n-1)`` matrix ``A`` of the hinge kinetic energy (module docstring)."""
+        w = self.rod_densities * self.lengths  # rod masses lambda_k l_k
+        A = np.diag(self.hinge_masses + (w[:-1] + w[1:]) / 3)
+        off = w[1:-1] / 6
         return A + np.diag(off, 1) + np.diag(off, -1)
 
     @property
@@ -103,8 +199,28 @@ class Chain:
         return 0.5 * np.einsum("...i,ij,...j->...", v, self.ambient_metric, v)
 
     # -- charts -------------------------------------------------------------------
+    def _chart_refusal(self) -> str | None:
+        """Why this chain has no suspension atlas, or ``None`` if it has one."""
+        hint = "; integrate its free motion with free_motion(..., method='hinges') instead (any generic lengths)"
+        if not self.unit_rods:
+            return (f"suspension charts (atlas, metric, free_motion(..., method='charts')) are built for unit "
+                    f"rods only, and {self!r} has rods of other lengths" + hint)
+        try:
+            validate_chain(self.n, self.L)
+        except ValueError as err:
+            return f"{err}; suspension charts (atlas, metric, method='charts') exist only there" + hint
+        return None
+
+    @property
+    def has_atlas(self) -> bool:
+        """Whether :meth:`atlas` exists: unit rods with ``n - 2 < L < n`` (the sphere ``S^(n-2)``)."""
+        return self._chart_refusal() is None
+
     def atlas(self, switch_threshold: float = 0.25) -> SuspensionAtlas:
-        """The atlas of ``n`` cyclically relabeled suspension charts."""
+        """The atlas of ``n`` cyclically relabeled suspension charts (``ValueError`` unless :attr:`has_atlas`)."""
+        refusal = self._chart_refusal()
+        if refusal is not None:
+            raise ValueError(refusal)
         return SuspensionAtlas(self.n, self.L, switch_threshold)
 
     def metric(self, atlas: SuspensionAtlas | None = None) -> InducedMetric:
@@ -156,13 +272,13 @@ class Chain:
         return rod_vectors(self.as_hinges(hinges), self.L)
 
     def closure_residual(self, hinges: ArrayLike) -> NDArray:
-        """``max_k | |e_k| - 1 |``: how far a configuration is from closing (0 if it does)."""
-        return closure_residual(self.as_hinges(hinges), self.L)
+        """``max_k | |e_k| - l_k |``: how far a configuration is from closing (0 if it does)."""
+        return closure_residual(self.as_hinges(hinges), self.L, self.lengths)
 
     def check_configuration(self, hinges: ArrayLike, tol: float = 1e-9) -> NDArray:
         """Return ``hinges`` as a complex array if it closes to ``tol``; raise otherwise."""
         h = self.as_hinges(hinges)
-        res = closure_residual(h, self.L)
+        res = closure_residual(h, self.L, self.lengths)
         if np.any(res > tol):
             raise ConfigurationError(
                 f"configuration does not close: max rod-length error {np.max(res):.3g} exceeds tol = {tol:g}"
@@ -174,16 +290,17 @@ class Chain:
         return np.angle(self.rods(hinges))
 
     def hinges_from_angles(self, angles: ArrayLike, tol: float = 1e-9) -> NDArray:
-        """Interior hinges from rod angles; raises unless ``sum e^{i theta_k} = L`` to ``tol``."""
+        """Interior hinges from rod angles; raises unless ``sum_k l_k e^{i theta_k} = L`` to ``tol``."""
         th = np.asarray(angles, dtype=float)
         if th.ndim == 0 or th.shape[-1] != self.n:
             raise ConfigurationError(f"rod angles have length n = {self.n}, got shape {th.shape}")
         if not np.all(np.isfinite(th)):
             raise ConfigurationError(f"rod angles must be finite, got {th}")
-        e = np.exp(1j * th)
+        e = self.lengths * np.exp(1j * th)
         gap = np.abs(e.sum(axis=-1) - self.L)
         if np.any(gap > tol):
-            raise ConfigurationError(f"rod angles do not close: |sum e^(i theta) - L| = {np.max(gap):.3g} > tol = {tol:g}")
+            raise ConfigurationError(f"rod angles do not close: |sum_k l_k e^(i theta_k) - L| = {np.max(gap):.3g} "
+                                     f"> tol = {tol:g}")
         return hinges_from_rods(e)
 
     def to_point(self, hinges: ArrayLike) -> NDArray:

@@ -34,6 +34,8 @@ from numpy.typing import ArrayLike, NDArray
 from .lengths import sides, validate_lengths
 
 MAX_RODS = 20
+#: Signed sums and ``max s_j - P/2`` within ``RTOL * P`` of zero count as zero.
+RTOL = 1e-12
 
 
 @dataclass(frozen=True)
@@ -132,6 +134,18 @@ def _subset_sums(values: NDArray) -> tuple[NDArray, NDArray]:
     return sums, sizes
 
 
+def longest_side(lengths: NDArray, L: float) -> tuple[int, float]:
+    """Index ``j`` of a longest side and its excess ``s_j - P/2`` over half the perimeter.
+
+    The polygon closes iff the excess is ``<= 0`` (each side at most the sum of
+    the others); at ``0`` only collinearly.  Takes validated ``lengths`` and ``L``
+    (:func:`~linkage.lengths.validate_lengths`).
+    """
+    s = sides(lengths, L)
+    j = int(np.argmax(s))
+    return j, float(s[j]) - float(s.sum()) / 2
+
+
 def _collinear(lengths: NDArray, L: float, tol: float) -> tuple[tuple[int, ...], ...]:
     """All ``eps`` with ``|sum_k eps_k l_k - L| <= tol`` (the subset ``{eps_k = +1}`` sums to ``(sum l + L)/2``)."""
     plus, _ = _subset_sums(lengths)
@@ -150,7 +164,7 @@ def _betti(s: NDArray, half: float) -> tuple[int, ...]:
     return tuple(a[i] + a[d - i] for i in range(d + 1))
 
 
-def topology(lengths: ArrayLike, L: float, rtol: float = 1e-12) -> Topology:
+def topology(lengths: ArrayLike, L: float, rtol: float = RTOL) -> Topology:
     """The topology of the configuration space of rods ``lengths`` pinned ``L`` apart.
 
     Parameters
@@ -175,7 +189,7 @@ def topology(lengths: ArrayLike, L: float, rtol: float = 1e-12) -> Topology:
     P = float(s.sum())
     half, tol = P / 2, rtol * P
     base = dict(lengths=tuple(float(v) for v in ls), L=L, dominant_side=None, long_sides=(), collinear=())
-    excess = float(s.max()) - half
+    _, excess = longest_side(ls, L)
     if excess > tol:
         return Topology("empty", False, 0, (), **base)
     collinear = _collinear(ls, L, tol)

@@ -11,22 +11,55 @@ from .conftest import base_lengths
 
 
 @pytest.mark.parametrize(
-    "n, L, match",
+    "lengths, L, match",
     [
-        (4, 2.0, r"2 < L < 4"),
-        (4, 4.0, r"2 < L < 4"),
-        (4, 1.0, r"got L = 1.0"),
-        (4, float("nan"), r"finite"),
+        (4, 4.5, r"empty: L = 4.5 exceeds the sum 4 of the other sides"),
+        ([1, 5, 1], 2.0, r"empty: lengths\[1\] = 5.0 exceeds the sum 4"),
+        (4, float("nan"), r"L \(base length\) must be a finite number > 0"),
         (4, float("inf"), r"finite"),
-        (1, 0.5, r"n \(number of rods\) must be an integer >= 2, got 1"),
+        (4, 0.0, r"> 0, got L = 0.0"),
+        (4, "2.5", r"got L = '2.5'"),  # a string is not a number, even if float() would take it
+        (1, 0.5, r"lengths must be an integer n >= 2 \(n unit rods\) or a sequence"),
         (3.0, 1.5, r"integer"),
         (True, 0.5, r"integer"),
-        (4, "x", r"real number"),
+        ([1.0, -2.0, 1.0], 1.0, r"lengths\[1\] = -2.0"),
+        ([1.0, np.inf, 1.0], 1.0, r"lengths\[1\] = inf"),
+        ([1.0], 1.0, r"at least 2"),
+        (["1", "2"], 1.0, r"finite numbers"),
     ],
 )
-def test_bad_chain_is_refused_with_the_valid_range(n, L, match):
+def test_bad_chain_is_refused_naming_the_value(lengths, L, match):
     with pytest.raises(ValueError, match=match):
-        Chain(n, L)
+        Chain(lengths, L)
+
+
+@pytest.mark.parametrize("n, L, kind", [(4, 2.0, "singular"), (4, 4.0, "point"), (4, 1.0, "manifold"),
+                                        (5, 2.5, "manifold"), (3, 0.5, "tori")])
+def test_unit_rods_outside_the_sphere_range_are_a_chain_without_an_atlas(n, L, kind):
+    """Not a sphere but not empty: the chain exists, its charts do not, and the message keeps the range."""
+    chain = Chain(n, L)
+    assert chain.unit_rods and not chain.has_atlas and chain.topology().kind == kind
+    for method in (chain.atlas, chain.metric):
+        with pytest.raises(ValueError, match=rf"{n - 2} < L < {n}.*method='hinges'"):
+            method()
+    generic = chain.topology().generic
+    if generic:
+        chain.check_generic()
+    else:
+        with pytest.raises(ValueError, match=r"not.*collinear .*rods \([+-]"):
+            chain.check_generic()
+
+
+def test_lengths_given_as_ones_are_unit_rods():
+    chain = Chain([1, 1, 1, 1], 2.5)
+    assert chain.unit_rods and chain.has_atlas and repr(chain) == repr(Chain(4, 2.5)) == "Chain(n=4, L=2.5)"
+    assert np.array_equal(chain.mass_matrix, Chain(4, 2.5).mass_matrix)
+    other = Chain([1, 2, 1.5, 2.5, 1.2], 3.0)
+    assert not other.unit_rods and not other.has_atlas and other.n == 5
+    with pytest.raises(ValueError, match="unit rods only.*method='hinges'"):
+        other.atlas()
+    with pytest.raises(ValueError):
+        other.lengths[0] = 2.0  # read-only
 
 
 @pytest.mark.parametrize("kw", [{"hinge_masses": 0.0}, {"hinge_masses": [1, 2]}, {"rod_densities": -1.0},
@@ -36,20 +69,34 @@ def test_bad_masses_are_refused(kw):
         Chain(4, 3.0, **kw)
 
 
-def test_mass_matrix_is_the_kinetic_energy_of_hinges_and_rods():
-    """Compare ``1/2 v^T K v`` with a quadrature of the rod integrals of the seed's T."""
+@pytest.mark.parametrize("lengths", [5, [1.0, 2.0, 1.5, 2.5, 1.2], [0.3, 4.0, 0.7, 1.1, 2.2]])
+def test_mass_matrix_is_the_kinetic_energy_of_hinges_and_rods(lengths):
+    """``1/2 v^T K v`` against a quadrature, over arc length, of the rods' kinetic energy density.
+
+    A uniform rod of line density ``lambda`` and length ``l`` has mass ``lambda l``:
+    ``T_rod = 1/2 int_0^l lambda |v(sigma)|^2 dsigma`` with ``v`` interpolating the
+    end velocities linearly in arc length ``sigma``.
+    """
     rng = np.random.default_rng(3)
     M, lam = rng.uniform(0.5, 2, 4), rng.uniform(0, 2, 5)
-    chain = Chain(5, 4.2, hinge_masses=M, rod_densities=lam)
+    chain = Chain(lengths, 4.2, hinge_masses=M, rod_densities=lam)
+    ls = chain.lengths
     v = rng.normal(size=4) + 1j * rng.normal(size=4)
     vf = np.concatenate([[0], v, [0]])  # pins do not move
     s, w = np.polynomial.legendre.leggauss(4)
-    s, w = (s + 1) / 2, w / 2
-    rods = sum(lam[k] * np.sum(w * np.abs((1 - s) * vf[k] + s * vf[k + 1]) ** 2) for k in range(5))
+    rods = 0.0
+    for k in range(5):
+        sigma, wk = ls[k] * (s + 1) / 2, ls[k] * w / 2  # nodes and weights on [0, l_k]
+        vel = vf[k] + (sigma / ls[k]) * (vf[k + 1] - vf[k])
+        rods += lam[k] * np.sum(wk * np.abs(vel) ** 2)
     expected = 0.5 * np.sum(M * np.abs(v) ** 2) + 0.5 * rods
     assert chain.kinetic_energy(v) == pytest.approx(expected, rel=1e-14)
     A = chain.mass_matrix
     assert np.allclose(A, A.T) and np.all(np.linalg.eigvalsh(A) > 0)
+    if chain.unit_rods:
+        return
+    heavier = Chain(2 * ls, 8.4, hinge_masses=M, rod_densities=lam)  # doubled rods: doubled rod masses
+    assert np.allclose(heavier.mass_matrix - np.diag(M), 2 * (A - np.diag(M)), rtol=1e-15, atol=0)
 
 
 def test_default_mass_model_is_unit_hinge_masses():
@@ -107,3 +154,36 @@ def test_closure_residual_measures_the_defect():
         chain.check_configuration([1.0, 1.0, 1.0])
     with pytest.raises(ConfigurationError, match="do not close"):
         chain.hinges_from_angles([0.0, 0.0, 0.0])
+
+
+def test_closure_uses_the_rod_lengths():
+    """A 3-4-5 triangle by hand: ``p_1 = (9 + 12 i) / 5`` closes rods 3 and 4 on the base 5."""
+    chain = Chain([3.0, 4.0], 5.0)
+    h = np.array([(9 + 12j) / 5])
+    assert chain.closure_residual(h) < 1e-15
+    assert chain.closure_residual(h * 1.01) == pytest.approx(0.03, rel=1e-6)  # |p_1| = 3.03, rod 2 ~ 3.99
+    with pytest.raises(ConfigurationError, match="does not close"):
+        chain.check_configuration(h * 1.01)
+    assert Chain(2, 5 / 3).closure_residual(h / 3) == pytest.approx(1 / 3, rel=1e-14)  # rods 1, 4/3: unit rods miss by 1/3
+    th = chain.angles(h)
+    assert np.allclose(th, [np.arctan2(12, 9), np.arctan2(-12, 16)], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(chain.hinges_from_angles(th), h, rtol=0, atol=1e-15)
+    with pytest.raises(ConfigurationError, match=r"sum_k l_k e\^\(i theta_k\) - L"):
+        chain.hinges_from_angles(th + 0.1)
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_diagonals_of_the_chain_round_trip(seed):
+    chain = Chain([1.0, 2.0, 1.5, 2.5, 1.2], 3.0)
+    rng = np.random.default_rng(seed)
+    sample = chain.diagonal_space().sample(50, rng)
+    h = chain.from_diagonals(sample.x, sample.flips)
+    assert np.abs(h - sample.hinges).max() == 0.0  # the same map
+    assert chain.closure_residual(h).max() < 1e-13
+    chain.check_configuration(h)
+    x, flips = chain.diagonals(h)
+    np.testing.assert_allclose(x, sample.x, rtol=0, atol=1e-13)
+    assert np.array_equal(flips, sample.flips)  # Lebesgue samples lie off the walls almost surely
+    np.testing.assert_allclose(chain.hinges_from_angles(chain.angles(h)), h, rtol=0, atol=1e-13)
+    with pytest.raises(ConfigurationError, match="expected as complex hinges"):
+        chain.diagonals(h.real)

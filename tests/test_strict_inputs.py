@@ -55,7 +55,7 @@ def test_flags_and_chart_indices_must_have_their_type(start, kw, error):
 
 def test_strings_are_not_numbers(start):
     chain, h0, v0 = start
-    with pytest.raises(ValueError, match=r"L must be a finite real number with 2 < L < 4"):
+    with pytest.raises(ValueError, match=r"L \(base length\) must be a finite number > 0, got L = '2.5'"):
         Chain(4, L="2.5")
     with pytest.raises(ValueError, match="t_final"):
         free_motion(chain, h0, v0, "1")
