@@ -393,7 +393,8 @@ class DiagonalSpace:
             at the Chebyshev centre; each step picks a direction and moves to a
             uniform point of the chord of ``D`` through ``x`` (uniform measure is
             invariant for any symmetric direction law; after ``steps // 3``
-            isotropic steps the directions follow the ensemble covariance).
+            isotropic steps the directions follow the ensemble covariance,
+            if there are at least ``10 (n-1)`` chains to estimate it).
             Approximately uniform after ``steps`` steps (default
             ``40 + 15 (n-2)^2``, about five times what the moments need in the
             tests).  'auto': rejection if a pilot of 4096 cuboid draws accepts
@@ -462,7 +463,8 @@ class DiagonalSpace:
         x = np.repeat(centre[:, None], N, axis=1)
         chol = np.eye(self.dim)
         for step in range(steps):
-            if step == steps // 3:
+            # fewer chains than that give a singular or meaningless covariance (N = 1: NaN)
+            if step == steps // 3 and N >= 10 * (self.dim + 1):
                 cov = np.atleast_2d(np.cov(x)) + 1e-12 * np.eye(self.dim)
                 chol = np.linalg.cholesky(cov)
             u = np.einsum("ij,jn->in", chol, rng.standard_normal((self.dim, N)))

@@ -292,6 +292,17 @@ def test_hit_and_run_agrees_with_rejection():
     assert abs(har.flips.mean()) < 0.05 and rej.measure == har.measure == "lebesgue"
 
 
+def test_hit_and_run_with_one_chain_at_a_time():
+    """Too few chains for an ensemble covariance (N = 1 gave NaN): isotropic directions throughout, still uniform."""
+    space = DiagonalSpace(EXAMPLE, 7.0)  # the sphere regime: D is 2% of its cuboid
+    rng = np.random.default_rng(13)
+    one = space.sample(1, rng, method="hit-and-run")
+    assert np.all(np.isfinite(one.hinges)) and np.all(space.contains(one.x))
+    few = np.concatenate([space.sample(8, rng, method="hit-and-run").x for _ in range(40)])  # 8 < 10 (n-1)
+    assert np.all(space.contains(few))
+    _moments_agree(space.sample(8000, rng, method="rejection").x, few)
+
+
 def test_hit_and_run_where_cuboid_rejection_is_hopeless():
     ls, L = np.ones(7), 6.9  # nearly stretched: D is a thin sliver of the cuboid
     space = DiagonalSpace(ls, L)

@@ -1,0 +1,206 @@
+"""Free motion of chains of any link lengths, in hinge coordinates, whatever the topology.
+
+The hinge-coordinate Taylor method (``free_motion(..., method="hinges")``) is
+checked against the chart-free DOP853 reference (``integrate_ambient``), an
+independent integrator of the same Lagrange-multiplier equations, on spheres,
+higher-genus manifolds and tori; and by what holds whatever the integrator:
+energy, rod lengths, time reversal, and the component of a torus.  Starts are
+sampled through the diagonal parameterization, with a random velocity
+projected onto the tangent space.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+
+import numpy as np
+import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from linkage import Chain
+from linkage.ambient import integrate_ambient
+from linkage.constraints import ChainSystem, HingeConstraints
+from linkage.motion import free_motion
+from manifold.constrained import compiled_constrained
+
+EXAMPLE = (1.0, 2.0, 1.5, 2.5, 1.2)
+#: Three long sides (l_1, l_2 and L = 3: each pair exceeds P/2 = 5.1): two tori T^3.
+TORUS = (3.0, 3.0, 0.5, 0.4, 0.3)
+
+
+def start(chain: Chain, rng: np.random.Generator, x: np.ndarray | None = None, flips: np.ndarray | None = None):
+    """A configuration from the diagonals (sampled uniformly in ``D`` unless given) and a unit-energy tangent velocity."""
+    if x is None:
+        s = chain.diagonal_space().sample(1, rng)
+        x, flips = s.x[0], s.flips[0]
+    h0 = chain.from_diagonals(x, flips)
+    x0 = chain.to_point(h0)
+    v0 = chain.from_point(HingeConstraints(chain).project_velocity(x0, rng.normal(size=x0.size)))
+    return h0, v0 / np.sqrt(2 * chain.kinetic_energy(v0))
+
+
+CASES = [
+    (EXAMPLE, 0.5, "manifold", {}),  # betti (1, 6, 6, 1)
+    (EXAMPLE, 3.0, "manifold", {}),  # betti (1, 7, 7, 1)
+    (EXAMPLE, 4.5, "manifold", {"hinge_masses": [1.0, 2.0, 0.5, 1.5]}),
+    (EXAMPLE, 7.0, "sphere", {}),  # the base dominates: S^3, not unit rods, so no atlas
+    (TORUS, 3.0, "tori", {}),
+    ((0.7, 1.9, 1.3, 2.2), 1.1, "manifold", {"rod_densities": [0.3, 1.0, 0.0, 2.0]}),  # dense K^-1
+]
+
+
+@pytest.mark.parametrize("lengths, L, kind, masses", CASES)
+def test_hinge_method_agrees_with_the_ambient_reference(lengths, L, kind, masses):
+    chain = Chain(lengths, L, **masses)
+    assert chain.topology().kind == kind and not chain.has_atlas
+    h0, v0 = start(chain, np.random.default_rng(int(10 * L) + len(lengths)))
+    T = 10.0
+    ts = np.linspace(0, T, 41)
+    # compact mode: one cold compile per (n, mass sparsity) in seconds (CI starts cold)
+    hinges = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts, compact_mode=True)
+    ref = integrate_ambient(chain, h0, v0, T, t_eval=ts, rtol=1e-13, atol=1e-13)
+    assert hinges.success and ref.success
+    assert np.abs(hinges.hinges - ref.hinges).max() <= 1e-9
+    assert np.abs(hinges.velocities - ref.velocities).max() <= 1e-9
+    E0 = chain.kinetic_energy(v0)
+    assert hinges.relative_energy_error <= 1e-13
+    assert np.abs(hinges.energies - E0).max() <= 1e-13 * E0
+    assert hinges.closure_residuals.max() <= 1e-13 * max(lengths)
+    rods = np.abs(chain.rods(hinges.hinges))  # each rod keeps its own length
+    assert np.abs(rods - chain.lengths).max() <= 1e-13 * max(lengths)
+    with pytest.raises(ValueError, match="no atlas"):
+        hinges.solution.parameters(ts[:2])
+
+
+def test_a_torus_component_is_kept():
+    """Two tori: the long rods ``e_1, e_2`` can never be parallel (``|e_1 + e_2|`` stays in ``[1.8, 4.2]``), so the
+    sign of ``Im(conj(e_1) e_2)`` names the component, and a motion keeps it; both components move alike."""
+    chain = Chain(TORUS, 3.0)
+    rng = np.random.default_rng(4)
+    space = chain.diagonal_space()
+    x = space.sample(1, rng).x[0]
+    T, ts = 20.0, np.linspace(0, 20.0, 201)
+    runs = {}
+    for sign in (1, -1):
+        h0, v0 = start(chain, np.random.default_rng(5), x, np.array([sign, 1, -1, 1]))
+        e = chain.rods(h0)
+        assert np.sign(np.imag(np.conj(e[0]) * e[1])) == sign  # sigma_2 is the orientation of (p_1, p_2)
+        m = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts, compact_mode=True)
+        e = chain.rods(m.hinges)
+        cross = np.imag(np.conj(e[:, 0]) * e[:, 1])
+        assert np.all(np.sign(cross) == sign) and np.abs(cross).min() > 0.5
+        runs[sign] = m
+    # the components are mirror images (conjugation), and so are their motions
+    h0, v0 = start(chain, np.random.default_rng(5), x, np.array([1, 1, -1, 1]))
+    mirror = free_motion(chain, np.conj(h0), np.conj(v0), T, method="hinges", t_eval=ts, compact_mode=True)
+    assert np.abs(mirror.hinges - np.conj(runs[1].hinges)).max() <= 1e-10
+
+
+@pytest.mark.parametrize("lengths, L", [(EXAMPLE, 3.0), (TORUS, 3.0)])
+def test_backward_run_returns_to_the_start(lengths, L):
+    chain = Chain(lengths, L)
+    h0, v0 = start(chain, np.random.default_rng(11))
+    fwd = free_motion(chain, h0, v0, 25.0, method="hinges", compact_mode=True)
+    h1, w1 = fwd.solution.end_state()
+    back = free_motion(chain, chain.from_point(h1.astype(float)), chain.from_point(w1.astype(float)), -25.0,
+                       method="hinges", compact_mode=True)
+    h2, w2 = back.solution.end_state()
+    assert np.abs(chain.from_point(h2.astype(float)) - h0).max() <= 1e-11
+    assert np.abs(chain.from_point(w2.astype(float)) - v0).max() <= 1e-11
+
+
+@st.composite
+def generic_chains(draw, n_min: int = 3, n_max: int = 6):
+    """Lengths in ``[0.2, 3]``, ``L`` anywhere the space is non-empty and generic, and a start that may sit
+    within ``1e-12 .. 1e-4`` (times the perimeter) of a wall of ``D`` (a flat fan triangle)."""
+    n = draw(st.integers(n_min, n_max))
+    ls = np.array([draw(st.floats(0.2, 3.0)) for _ in range(n)])
+    L = draw(st.floats(0.05, float(ls.sum()) - 0.05))
+    assume(2 * max(ls.max(), L) < ls.sum() + L)
+    chain = Chain(ls, L)
+    assume(chain.topology().generic)
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    space = chain.diagonal_space()
+    assume(space.interior_point()[1] > 1e-3)  # enough room to sample
+    x = space.sample(1, rng, method="hit-and-run").x[0]
+    if draw(st.booleans()):  # move x along a random direction to within gap of the nearest wall
+        gap = 10.0 ** draw(st.floats(-12, -4)) * (ls.sum() + L)
+        u = rng.normal(size=x.size)
+        rate = space.A @ u
+        t = np.where(rate > 0, space.slacks(x) / np.where(rate > 0, rate, 1.0), np.inf)
+        i = int(np.argmin(t))  # the wall hit first; at t_i - gap / rate_i its slack is gap
+        x = x + max(t[i] - gap / rate[i], 0.0) * u
+    flips = rng.choice([-1, 1], size=n - 1)
+    return chain, x, flips, rng
+
+
+@given(generic_chains())
+@settings(max_examples=12)
+def test_property_hinge_method_matches_reference_for_any_generic_lengths(case):
+    chain, x, flips, rng = case
+    h0, v0 = start(chain, rng, x, flips)
+    ts = np.linspace(0, 2.0, 9)
+    hinges = free_motion(chain, h0, v0, 2.0, method="hinges", t_eval=ts, compact_mode=True)
+    ref = integrate_ambient(chain, h0, v0, 2.0, t_eval=ts, rtol=1e-13, atol=1e-13)
+    scale = float(chain.lengths.sum() + chain.L)
+    assert np.abs(hinges.hinges - ref.hinges).max() <= 1e-9 * scale
+    assert hinges.relative_energy_error <= 1e-13
+    assert hinges.closure_residuals.max() <= 1e-13 * scale
+
+
+@given(st.integers(3, 7), st.integers(0, 2**32 - 1))
+@settings(max_examples=10)
+def test_compiled_constraints_and_acceleration_match_numpy_for_any_lengths(n, seed):
+    """``ChainSystem`` (heyoka, lengths as runtime parameters) against ``HingeConstraints`` (numpy, dense solve)."""
+    rng = np.random.default_rng(seed)
+    ls = rng.uniform(0.3, 3.0, n)
+    L = rng.uniform(0.1, 0.9) * ls.sum()
+    assume(2 * max(ls.max(), L) < ls.sum() + L)
+    chain = Chain(ls, L)
+    assume(chain.topology().generic)
+    h0, v0 = start(chain, rng)
+    x, v = chain.to_point(h0), chain.to_point(v0)
+    ref, system = HingeConstraints(chain), ChainSystem(chain)
+    comp = compiled_constrained(system)
+    geo = comp.geometry(float)
+    r = rng.normal(size=n)
+    out = geo(np.concatenate([x, v, r]), pars=comp.layout.pack(system, 0.0, float)[: geo.nparams])
+    c, Gv, d = out[:n], out[n: 2 * n], out[2 * n: -1]
+    assert np.abs(c - ref.constraints(x)).max() <= 1e-13 * ls.max() ** 2
+    assert np.abs(ref.constraints(x)).max() <= 1e-13 * ls.max() ** 2  # the start closes with these lengths
+    assert np.allclose(Gv, ref.jacobian(x) @ v, atol=1e-12)
+    assert np.allclose(d, ref.min_norm_correction(ref.jacobian(x), r), rtol=1e-9, atol=1e-10)
+    acc = comp.acceleration(float, stabilised=False)
+    a = acc(np.concatenate([x, v]), pars=comp.layout.pack(system, 0.0, float)[: acc.nparams])
+    assert np.allclose(a, ref.acceleration(x, v), rtol=1e-9, atol=1e-10)
+
+
+def test_one_compiled_integrator_serves_every_length():
+    unit, other = Chain(5, 3.5), Chain(EXAMPLE, 3.0)
+    assert compiled_constrained(ChainSystem(unit)) is compiled_constrained(ChainSystem(other))
+    assert np.array_equal(ChainSystem(other).parameters, [3.0, *EXAMPLE])
+
+
+@pytest.mark.parametrize("L", [2.2, 1.8, 0.2, 8.2])
+def test_non_generic_lengths_are_refused_naming_the_collinear_configuration(L):
+    chain = Chain(EXAMPLE, L)
+    # brute force: the sign vectors with sum_k eps_k l_k = L are the collinear configurations
+    collinear = [e for e in itertools.product((1, -1), repeat=5) if abs(np.dot(e, EXAMPLE) - L) < 1e-12]
+    assert collinear and not chain.topology().generic
+    h0 = np.cumsum(np.array(collinear[0]) * np.array(EXAMPLE))[:-1].astype(complex)  # it closes
+    chain.check_configuration(h0)
+    name = re.escape("rods (" + ", ".join("+" if e > 0 else "-" for e in collinear[0]) + ")")
+    for method in ("hinges", "charts"):
+        with pytest.raises(ValueError, match=rf"smooth configuration space.*collinear.*{name}"):
+            free_motion(chain, h0, np.zeros(4, complex), 1.0, method=method)
+    with pytest.raises(ValueError, match=rf"collinear.*{name}"):
+        integrate_ambient(chain, h0, np.zeros(4, complex), 1.0)
+
+
+def test_charts_outside_unit_rods_name_the_hinge_method():
+    for chain in (Chain(EXAMPLE, 3.0), Chain(EXAMPLE, 7.0), Chain(4, 1.0)):
+        h0, v0 = start(chain, np.random.default_rng(0))
+        with pytest.raises(ValueError, match=r"method='hinges'"):
+            free_motion(chain, h0, v0, 1.0, method="charts")
