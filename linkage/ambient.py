@@ -6,7 +6,7 @@ constraints
 
 .. math::
 
-    c_k(x) = |e_k|^2 - 1 = 0, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1}.
+    c_k(x) = |e_k|^2 - l_k^2 = 0, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1}.
 
 With the constant kinetic-energy metric ``K = A (x) I_2`` of
 :attr:`Chain.ambient_metric` and ``G = dc/dx`` (``n x 2(n-1)``), the
@@ -24,7 +24,7 @@ the second being the constraints differentiated twice
     x'' = K^{-1} G^T (G K^{-1} G^T)^{-1} (-2 |e'|^2).
 
 Its solutions are the geodesics of the induced metric ``g = J^T K J`` on the
-configuration sphere, traversed at constant kinetic energy ``1/2 x'^T K x'``.
+configuration space (any generic lengths, whatever its topology), traversed at constant kinetic energy ``1/2 x'^T K x'``.
 No chart is used, so this is an independent reference for the chart-based
 geodesics.  The constraints hold only to integration accuracy (the equation
 keeps ``c'' = 0``, not ``c = 0``); ``project=True`` pulls the state back onto
@@ -46,7 +46,7 @@ from manifold.validation import check_bool, check_real
 
 from .chain import Chain
 from .constraints import start_state
-from .motion import ChainMotion
+from .motion import ChainMotion, chart_metric
 
 __all__ = ["integrate_ambient"]
 
@@ -93,12 +93,13 @@ def integrate_ambient(
         x'' = K^{-1} G^T (G K^{-1} G^T)^{-1} (-2 |e'|^2),
 
     whose solutions are the constant-speed geodesics of the kinetic-energy
-    metric on the configuration sphere.
+    metric on the configuration space.
 
     Parameters
     ----------
     chain
-        The :class:`~linkage.Chain` (``n``, ``L`` and mass model ``K``).
+        The :class:`~linkage.Chain` (``n``, ``L``, rod lengths and mass model
+        ``K``); generic lengths (:meth:`Chain.check_generic`).
     hinges0
         Complex initial hinges ``p_1 .. p_{n-1}``; must close to ``1e-9``
         (:meth:`Chain.check_configuration`, raises ``ConfigurationError``).
@@ -138,7 +139,7 @@ def integrate_ambient(
     ChainMotion
         Complex-hinge view of a :class:`~manifold.GeodesicSolution` whose
         segments are in hinge coordinates (``chart=None``): chart parameters
-        come on demand from the best chart of the atlas.
+        come on demand from the best chart of the atlas, where the chain has one.
     """
     system, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
     interval = check_real("projection_interval", projection_interval, positive=True) if project else None
@@ -160,7 +161,7 @@ def integrate_ambient(
     wall0 = time.perf_counter()
     bounds = _segment_bounds(t_final, interval)
     y = np.concatenate([x0, v0])
-    solution = GeodesicSolution(chain.metric(), float, f"ambient-{method}", (0.0, t_final), {})
+    solution = GeodesicSolution(chart_metric(chain), float, f"ambient-{method}", (0.0, t_final), {})
     solution.energy_times.append(0.0)
     solution.energies.append(_energy(v0, system.K))
     times, states = [0.0], [y]

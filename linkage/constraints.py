@@ -7,10 +7,9 @@ configurations are the zeros of the ``n`` rod constraints
 
 .. math::
 
-    c_k(x) = |e_k|^2 - 1, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1}
+    c_k(x) = |e_k|^2 - l_k^2, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1}
 
-(unit rods; rods of length ``l_k`` would read ``|e_k|^2 - l_k^2``), and the
-tangent space at ``x`` is the null space of ``G = dc/dx``.  Every constrained
+(rod lengths ``l_k``: :attr:`Chain.lengths`), and the tangent space at ``x`` is the null space of ``G = dc/dx``.  Every constrained
 method in hinge space (the reference integrator of :mod:`linkage.ambient`,
 RATTLE, a hinge-coordinate Taylor method) is built from one operation, the
 K-smallest solution ``d`` of ``G d = r``:
@@ -56,12 +55,12 @@ class HingeConstraints:
     Parameters
     ----------
     chain
-        The :class:`~linkage.Chain`: its ``n``, ``L`` and mass model ``K``.
+        The :class:`~linkage.Chain`: its ``n``, ``L``, rod lengths and mass model ``K``.
 
     Attributes
     ----------
-    n, L
-        Number of rods and pin distance of the chain.
+    n, L, lengths
+        Number of rods, pin distance and rod lengths ``l_1 .. l_n`` of the chain.
     ambient_dim
         ``2(n-1)``, the dimension of hinge space.
     K, K_inv
@@ -69,7 +68,7 @@ class HingeConstraints:
     """
 
     def __init__(self, chain: Chain) -> None:
-        self.n, self.L = chain.n, chain.L
+        self.n, self.L, self.lengths = chain.n, chain.L, chain.lengths
         self.ambient_dim = 2 * (self.n - 1)
         self.K = chain.ambient_metric
         self.K_inv = np.kron(np.linalg.inv(chain.mass_matrix), np.eye(2))
@@ -87,7 +86,7 @@ class HingeConstraints:
         return np.diff(np.concatenate([[[0.0, 0.0]], v.reshape(-1, 2), [[0.0, 0.0]]]), axis=0)
 
     def constraints(self, x: NDArray) -> NDArray:
-        """The constraint values ``c_k(x) = |e_k|^2 - 1``, ``k = 1..n``.
+        """The constraint values ``c_k(x) = |e_k|^2 - l_k^2``, ``k = 1..n``.
 
         Parameters
         ----------
@@ -99,7 +98,7 @@ class HingeConstraints:
         numpy.ndarray
             ``c``, shape ``(n,)``; zero exactly on the configuration space.
         """
-        return np.sum(self._rods(x) ** 2, axis=1) - 1.0
+        return np.sum(self._rods(x) ** 2, axis=1) - self.lengths**2
 
     def jacobian(self, x: NDArray) -> NDArray:
         """The constraint Jacobian ``G = dc/dx``.
@@ -137,7 +136,8 @@ class HingeConstraints:
 
         the unique solution that is K-orthogonal to ``ker G``
         (``w^T K d = 0`` for every ``w`` with ``G w = 0``).  ``G`` must have
-        full row rank (true on the configuration space for ``n - 2 < L < n``).
+        full row rank: true on the configuration space for generic lengths
+        (:meth:`Chain.check_generic`); it drops at a collinear configuration.
 
         Parameters
         ----------
@@ -260,7 +260,8 @@ def start_state(
     Parameters
     ----------
     chain
-        The chain.
+        The chain; its lengths must be generic (:meth:`Chain.check_generic`, else
+        ``ValueError`` naming the collinear configurations).
     hinges0
         Complex initial hinges; must close to ``1e-9`` (else ``ConfigurationError``).
     velocity0
@@ -281,6 +282,7 @@ def start_state(
         ``(constraints, x0, v0, t_final)``: the chain's :class:`HingeConstraints`,
         the real interleaved start position and velocity, and ``t_final`` as a float.
     """
+    chain.check_generic()
     h0 = chain.check_configuration(hinges0, tol=1e-9)
     v0 = chain.as_hinges(velocity0, "velocity0")
     if v0.shape != (chain.n - 1,):
@@ -309,8 +311,10 @@ class ChainSystem(ConstrainedSystem):
     """The chain's configuration space as a :class:`manifold.constrained.ConstrainedSystem`.
 
     Hinge space ``R^(2(n-1))`` (interleaved real hinges), constraints
-    ``c_k = |e_k|^2 - 1`` (``e_1 = p_1``, ``e_k = p_k - p_{k-1}``,
+    ``c_k = |e_k|^2 - l_k^2`` (``e_1 = p_1``, ``e_k = p_k - p_{k-1}``,
     ``e_n = L - p_{n-1}``) and the kinetic-energy metric ``K = A (x) I_2``.
+    ``L`` and the lengths are runtime parameters, so one compiled integrator
+    per ``n`` (and sparsity of ``K``) serves every chain of ``n`` rods.
     ``G`` has two nonzero ``1 x 2`` blocks per row, so with hinge masses only
     (diagonal ``K``) the multiplier matrix ``G K^{-1} G^T`` is tridiagonal
     and the generic ``L D L^T`` is the Thomas recursion; rod densities make
@@ -335,18 +339,19 @@ class ChainSystem(ConstrainedSystem):
 
     @property
     def parameters(self) -> NDArray:
-        """``[L]``: one compiled integrator serves every ``L`` and every mass model of one sparsity."""
-        return np.array([self.chain.L])
+        """``[L, l_1, ..., l_n]``: one compiled integrator serves every base, every set of lengths and every
+        mass model of one sparsity."""
+        return np.concatenate([[self.chain.L], self.chain.lengths])
 
     @property
     def metric_matrix(self) -> NDArray:
         return self.chain.ambient_metric
 
     def constraint_expressions(self, x: list, p: list, fp_type) -> list:
-        """``|e_k|^2 - 1`` with the pins ``0`` and ``L = p[0]``."""
-        L, one = p[0], hy.expression(fp_type(1.0))
+        """``|e_k|^2 - l_k^2`` with the pins ``0`` and ``L = p[0]``, ``l_k = p[k]``."""
+        L, lengths = p[0], p[1:]
         hx, hy_ = x[0::2], x[1::2]
         rods = [(hx[0], hy_[0])]  # e_1 = p_1
         rods += [(hx[k] - hx[k - 1], hy_[k] - hy_[k - 1]) for k in range(1, self.chain.n - 1)]
         rods.append((L - hx[-1], -hy_[-1]))  # e_n = L - p_{n-1}
-        return [ex * ex + ey * ey - one for ex, ey in rods]
+        return [ex * ex + ey * ey - lk * lk for (ex, ey), lk in zip(rods, lengths)]

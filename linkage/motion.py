@@ -16,7 +16,7 @@ import numpy as np
 
 from numpy.typing import ArrayLike, NDArray
 
-from manifold import GeodesicSolution, solve_chart_exp_ode
+from manifold import GeodesicSolution, InducedMetric, solve_chart_exp_ode
 from manifold.constrained import solve_constrained
 
 from .chain import Chain
@@ -81,7 +81,7 @@ class ChainMotion:
 
     @property
     def closure_residuals(self) -> NDArray:
-        """``max_k | |e_k| - 1 |`` at :attr:`times` (0 for an exact configuration)."""
+        """``max_k | |e_k| - l_k |`` at :attr:`times` (0 for an exact configuration)."""
         return self.chain.closure_residual(self.hinges)
 
     @property
@@ -108,6 +108,15 @@ class ChainMotion:
         return [c for k, c in enumerate(ids) if k == 0 or c != ids[k - 1]]
 
 
+def chart_metric(chain: Chain) -> InducedMetric | None:
+    """The kinetic-energy metric on the chain's atlas, or ``None`` where it has none (:attr:`Chain.has_atlas`).
+
+    A hinge-space solution carrying it reads chart parameters on demand
+    (``solution.parameters(t)``); without it, it has none.
+    """
+    return chain.metric() if chain.has_atlas else None
+
+
 #: The free-motion methods: in the atlas of suspension charts, or in hinge coordinates with rod constraints.
 METHODS = ("charts", "hinges")
 
@@ -132,16 +141,20 @@ def free_motion(
 
     * ``method="charts"``: in the atlas of suspension charts, switching chart
       at events (:func:`manifold.solve_chart_exp_ode`); gives chart
-      parameters and the switch log;
+      parameters and the switch log; only where the chain has an atlas
+      (:attr:`Chain.has_atlas`: unit rods, ``n - 2 < L < n``), else ``ValueError``;
     * ``method="hinges"``: in hinge coordinates with the rod constraints and
       their multipliers (:func:`manifold.constrained.solve_constrained` on
       :class:`linkage.constraints.ChainSystem`); no chart, nothing singular,
-      chart parameters read on demand from the atlas.
+      any generic lengths whatever the topology (spheres, tori, higher
+      genus); chart parameters read on demand from the atlas where there is one.
 
     Parameters
     ----------
     chain
-        The chain (its masses define the metric).
+        The chain (its masses define the metric).  Its lengths must be generic
+        (:meth:`Chain.check_generic`): ``ValueError`` naming the collinear
+        configurations otherwise.
     hinges0, velocity0
         Complex interior hinges (must close to ``1e-9``) and their velocity
         (tangent: ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)``).
@@ -165,7 +178,7 @@ def free_motion(
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
     # velocity0 is tangent to tangent_tol (checked above): the solvers' own projection only removes rounding
     if method == "hinges":
-        solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, metric=chain.metric(), **kwargs)
+        solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, metric=chart_metric(chain), **kwargs)
     else:
         solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, project_velocity=True, **kwargs)
     return ChainMotion(chain, solution)

@@ -41,22 +41,26 @@ def start(chain: Chain, rng: np.random.Generator, x: np.ndarray | None = None, f
     return h0, v0 / np.sqrt(2 * chain.kinetic_energy(v0))
 
 
+#: The torus chain's motion is chaotic: a 1e-10 perturbation of the start grew 1e5-fold by t = 10 (Lyapunov
+#: exponent ~1.2), and so does any integrator's rounding.  Trajectories are compared over a horizon where
+#: that growth stays below ~100 (the agreement then measures the methods, not the chaos).
+TORUS_HORIZON = 4.0
+
 CASES = [
-    (EXAMPLE, 0.5, "manifold", {}),  # betti (1, 6, 6, 1)
-    (EXAMPLE, 3.0, "manifold", {}),  # betti (1, 7, 7, 1)
-    (EXAMPLE, 4.5, "manifold", {"hinge_masses": [1.0, 2.0, 0.5, 1.5]}),
-    (EXAMPLE, 7.0, "sphere", {}),  # the base dominates: S^3, not unit rods, so no atlas
-    (TORUS, 3.0, "tori", {}),
-    ((0.7, 1.9, 1.3, 2.2), 1.1, "manifold", {"rod_densities": [0.3, 1.0, 0.0, 2.0]}),  # dense K^-1
+    (EXAMPLE, 0.5, "manifold", {}, 10.0),  # betti (1, 6, 6, 1)
+    (EXAMPLE, 3.0, "manifold", {}, 10.0),  # betti (1, 7, 7, 1)
+    (EXAMPLE, 4.5, "manifold", {"hinge_masses": [1.0, 2.0, 0.5, 1.5]}, 10.0),
+    (EXAMPLE, 7.0, "sphere", {}, 10.0),  # the base dominates: S^3, not unit rods, so no atlas
+    (TORUS, 3.0, "tori", {}, TORUS_HORIZON),
+    ((0.7, 1.9, 1.3, 2.2), 1.1, "manifold", {"rod_densities": [0.3, 1.0, 0.0, 2.0]}, 10.0),  # dense K^-1
 ]
 
 
-@pytest.mark.parametrize("lengths, L, kind, masses", CASES)
-def test_hinge_method_agrees_with_the_ambient_reference(lengths, L, kind, masses):
+@pytest.mark.parametrize("lengths, L, kind, masses, T", CASES)
+def test_hinge_method_agrees_with_the_ambient_reference(lengths, L, kind, masses, T):
     chain = Chain(lengths, L, **masses)
     assert chain.topology().kind == kind and not chain.has_atlas
     h0, v0 = start(chain, np.random.default_rng(int(10 * L) + len(lengths)))
-    T = 10.0
     ts = np.linspace(0, T, 41)
     # compact mode: one cold compile per (n, mass sparsity) in seconds (CI starts cold)
     hinges = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts, compact_mode=True)
@@ -88,23 +92,27 @@ def test_a_torus_component_is_kept():
         e = chain.rods(h0)
         assert np.sign(np.imag(np.conj(e[0]) * e[1])) == sign  # sigma_2 is the orientation of (p_1, p_2)
         m = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts, compact_mode=True)
+        assert m.relative_energy_error <= 1e-13 and m.closure_residuals.max() <= 1e-13 * 3.0
         e = chain.rods(m.hinges)
         cross = np.imag(np.conj(e[:, 0]) * e[:, 1])
         assert np.all(np.sign(cross) == sign) and np.abs(cross).min() > 0.5
         runs[sign] = m
-    # the components are mirror images (conjugation), and so are their motions
+    # the components are mirror images (conjugation), and so are their motions (up to the chaos: TORUS_HORIZON)
     h0, v0 = start(chain, np.random.default_rng(5), x, np.array([1, 1, -1, 1]))
-    mirror = free_motion(chain, np.conj(h0), np.conj(v0), T, method="hinges", t_eval=ts, compact_mode=True)
-    assert np.abs(mirror.hinges - np.conj(runs[1].hinges)).max() <= 1e-10
+    ts = np.linspace(0, TORUS_HORIZON, 41)
+    ref = free_motion(chain, h0, v0, TORUS_HORIZON, method="hinges", t_eval=ts, compact_mode=True)
+    mirror = free_motion(chain, np.conj(h0), np.conj(v0), TORUS_HORIZON, method="hinges", t_eval=ts,
+                         compact_mode=True)
+    assert np.abs(mirror.hinges - np.conj(ref.hinges)).max() <= 1e-11
 
 
-@pytest.mark.parametrize("lengths, L", [(EXAMPLE, 3.0), (TORUS, 3.0)])
-def test_backward_run_returns_to_the_start(lengths, L):
+@pytest.mark.parametrize("lengths, L, T", [(EXAMPLE, 3.0, 25.0), (TORUS, 3.0, TORUS_HORIZON)])
+def test_backward_run_returns_to_the_start(lengths, L, T):
     chain = Chain(lengths, L)
     h0, v0 = start(chain, np.random.default_rng(11))
-    fwd = free_motion(chain, h0, v0, 25.0, method="hinges", compact_mode=True)
+    fwd = free_motion(chain, h0, v0, T, method="hinges", compact_mode=True)
     h1, w1 = fwd.solution.end_state()
-    back = free_motion(chain, chain.from_point(h1.astype(float)), chain.from_point(w1.astype(float)), -25.0,
+    back = free_motion(chain, chain.from_point(h1.astype(float)), chain.from_point(w1.astype(float)), -T,
                        method="hinges", compact_mode=True)
     h2, w2 = back.solution.end_state()
     assert np.abs(chain.from_point(h2.astype(float)) - h0).max() <= 1e-11

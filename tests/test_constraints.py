@@ -1,7 +1,7 @@
 """HingeConstraints: G is dc/dx, the correction is the K-smallest solution, projections land on c = 0, G v = 0."""
 
 import numpy as np
-from hypothesis import given
+from hypothesis import assume, given
 from hypothesis import strategies as st
 from scipy.linalg import null_space
 
@@ -12,18 +12,31 @@ from linkage.constraints import HingeConstraints
 
 @st.composite
 def systems(draw):
-    """``(constraints, x, rng)``: a chain with a random mass model and a closed configuration ``x``."""
+    """``(constraints, x, rng)``: a chain with a random mass model and a closed configuration ``x``.
+
+    Unit rods in the sphere regime (``x`` from a suspension chart), or any
+    generic lengths, any topology (``x`` from the diagonal parameterization).
+    """
     n = draw(st.integers(3, 7))
-    L = draw(st.floats(n - 2 + 0.05, n - 0.05))
-    chain = Chain(
-        n,
-        L,
+    masses = dict(
         hinge_masses=draw(st.lists(st.floats(0.2, 5.0), min_size=n - 1, max_size=n - 1)),
         rod_densities=draw(st.lists(st.floats(0.0, 3.0), min_size=n, max_size=n)),
     )
-    a = [draw(st.floats(-1.4, 1.4)) for _ in range(n - 3)] + [draw(st.floats(-np.pi, np.pi))]
-    x = SuspensionChart(n, L).get_point(np.array(a))
-    return HingeConstraints(chain), x, np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    if draw(st.booleans()):
+        L = draw(st.floats(n - 2 + 0.05, n - 0.05))
+        chain = Chain(n, L, **masses)
+        a = [draw(st.floats(-1.4, 1.4)) for _ in range(n - 3)] + [draw(st.floats(-np.pi, np.pi))]
+        x = SuspensionChart(n, L).get_point(np.array(a))
+    else:
+        ls = [draw(st.floats(0.3, 3.0)) for _ in range(n)]
+        L = draw(st.floats(0.05, sum(ls) - 0.05))
+        assume(2 * max(*ls, L) < sum(ls) + L)
+        chain = Chain(ls, L, **masses)
+        assume(chain.topology().generic)
+        sample = chain.diagonal_space().sample(1, rng, method="hit-and-run")
+        x = chain.to_point(sample.hinges[0])
+    return HingeConstraints(chain), x, rng
 
 
 def k_orthogonal_to_tangent_space(sys: HingeConstraints, G: np.ndarray, d: np.ndarray) -> float:
