@@ -4,8 +4,10 @@ Run ``python -m linkage.diagonal_demo`` (default lengths ``(1, 2, 1.5, 2.5, 1.2)
 ``L = 3``).  It prints the topology on every interval of ``L`` between the
 critical values (where a signed sum ``sum_k eps_k l_k = L`` makes the space
 singular), the volume of ``D``, samples in both measures, and writes
-``docs/figures/diagonal_polytope.png``.  The outputs in ``docs/diagonals.md``
-come from this script.  matplotlib is imported only inside :func:`plot_diagonal_polytope`.
+``docs/figures/diagonal_polytope.png`` and ``docs/figures/sampled_configurations.png``
+(random configurations drawn as in the paper's Figures 5 and 6).  The outputs
+in ``docs/diagonals.md`` come from this script.  matplotlib is imported only
+inside the ``plot_*`` functions.
 """
 
 from __future__ import annotations
@@ -14,15 +16,25 @@ import argparse
 import itertools
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
-from .diagonals import DiagonalSample, DiagonalSpace
+from .diagonals import DiagonalSample, DiagonalSpace, from_diagonals
+from .lengths import validate_lengths
 from .topology import Topology, topology
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 EXAMPLE = (1.0, 2.0, 1.5, 2.5, 1.2)
-FIGURE = Path(__file__).resolve().parent.parent / "docs" / "figures" / "diagonal_polytope.png"
+FIGURES = Path(__file__).resolve().parent.parent / "docs" / "figures"
+FIGURE = FIGURES / "diagonal_polytope.png"
+CONFIGURATIONS_FIGURE = FIGURES / "sampled_configurations.png"
+#: The chains of :func:`plot_sampled_configurations` by default: the example in a 3-manifold and in its
+#: sphere regime, and a six-rod chain (a 4-manifold).
+CONFIGURATION_CASES = ((EXAMPLE, 3.0), (EXAMPLE, 7.0), ((0.7, 1.1, 1.9, 0.6, 1.4, 1.0), 1.35))
 
 
 def critical_bases(lengths: ArrayLike) -> np.ndarray:
@@ -99,12 +111,78 @@ def plot_diagonal_polytope(space: DiagonalSpace, samples: dict[str, DiagonalSamp
     plt.close(fig)
 
 
+def circular_configurations(hinges: ArrayLike, L: float) -> NDArray:
+    """The paper's circular configurations: each chain turned so that its first rod lies on the positive real axis.
+
+    ``hinges`` are complex ``(..., n-1)`` (``p_n = L``).  Returns the open chain
+    ``(p_1, ..., p_n) e^{-i arg p_1}``, shape ``(..., n)``: the rotation that the
+    paper's construction leaves free, after which the end ``p_n`` lies on the circle
+    ``|z| = L`` (the paper's "circular configuration" of the first ``n`` rods, the base
+    being the last link).
+    """
+    h = np.asarray(hinges, dtype=complex)
+    full = np.concatenate([h, np.full((*h.shape[:-1], 1), complex(L))], axis=-1)
+    return full * (np.conj(h[..., :1]) / np.abs(h[..., :1]))
+
+
+def flip_patterns(n: int) -> tuple[NDArray, NDArray]:
+    """Two flip vectors ``(sigma_2, ..., sigma_n)``: all ``+1``, and alternating ``+1, -1, ...``."""
+    return np.ones(n - 1, dtype=int), np.where(np.arange(n - 1) % 2 == 0, 1, -1)
+
+
+def plot_sampled_configurations(
+    cases: tuple[tuple[ArrayLike, float], ...] = CONFIGURATION_CASES, per_panel: int = 16, seed: int = 0
+) -> Figure:
+    """Random configurations in the style of the paper's Figures 5 and 6, one panel per chain and flip vector.
+
+    For each chain ``(lengths, L)`` (a column) and each of :func:`flip_patterns`
+    (a row), ``per_panel`` diagonals ``x`` uniform in ``D`` (Lebesgue), all with that
+    flip vector, are turned into configurations (:func:`~linkage.diagonals.from_diagonals`)
+    and drawn as :func:`circular_configurations`: every chain starts at the origin
+    along the positive real axis and ends on the dashed circle of radius ``L``.
+    Returns a matplotlib ``Figure`` (made without pyplot: no backend is chosen;
+    ``fig.savefig`` writes it, a notebook shows it).
+    """
+    import matplotlib
+    from matplotlib.figure import Figure
+
+    rng = np.random.default_rng(seed)
+    fig = Figure(figsize=(4.2 * len(cases), 8.4))
+    axes = fig.subplots(2, len(cases), squeeze=False)
+    colours = matplotlib.colormaps["viridis"](np.linspace(0.05, 0.95, per_panel))
+    for col, (lengths, L) in enumerate(cases):
+        ls, L = validate_lengths(lengths, L)
+        space = DiagonalSpace(ls, L)
+        kind = topology(ls, L).kind
+        for row, flips in enumerate(flip_patterns(ls.size)):
+            ax = axes[row, col]
+            x = space.sample(per_panel, rng).x
+            chains = circular_configurations(from_diagonals(ls, L, x, flips), L)
+            t = np.linspace(0, 2 * np.pi, 361)
+            ax.plot(L * np.cos(t), L * np.sin(t), "--", color="0.5", lw=0.8)
+            for c, z in zip(colours, chains):
+                z = np.concatenate([[0], z])
+                ax.plot(z.real, z.imag, "-", color=c, lw=1.0, alpha=0.8)
+                ax.plot(z.real[1:], z.imag[1:], "o", color=c, ms=2.2, alpha=0.8)
+            ax.plot([0], [0], "k^", ms=7)
+            ax.set_aspect("equal")
+            ax.tick_params(labelsize=7)
+            signs = "".join("+" if f > 0 else "-" for f in flips)
+            ax.set_title(f"rods ({', '.join(f'{v:g}' for v in ls)}), L = {L:g}\n{kind}, flips ({signs})", fontsize=9)
+    fig.suptitle(f"Random configurations from the diagonal parameterization ({per_panel} per panel, x uniform in D),\n"
+                 "turned so that the first rod lies on the positive axis: the last hinge lies on the circle |z| = L",
+                 fontsize=10)
+    fig.tight_layout()
+    return fig
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lengths", type=float, nargs="+", default=list(EXAMPLE))
     parser.add_argument("--L", type=float, default=3.0)
     parser.add_argument("--samples", type=int, default=6000)
     parser.add_argument("--out", type=Path, default=FIGURE)
+    parser.add_argument("--configurations-out", type=Path, default=CONFIGURATIONS_FIGURE)
     args = parser.parse_args(argv)
 
     print("topology as L varies:")
@@ -127,6 +205,9 @@ def main(argv: list[str] | None = None) -> None:
     if space.dim == 3:
         plot_diagonal_polytope(space, samples, args.out)
         print(f"wrote {os.path.relpath(args.out)}")
+    args.configurations_out.parent.mkdir(parents=True, exist_ok=True)
+    plot_sampled_configurations().savefig(args.configurations_out, dpi=110)
+    print(f"wrote {os.path.relpath(args.configurations_out)}")
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ from hypothesis import assume, given
 from hypothesis import strategies as st
 
 from charts.chain_geometry import rod_vectors
+from linkage.diagonal_demo import circular_configurations, flip_patterns, plot_sampled_configurations
 from linkage.diagonals import (
     DiagonalSpace,
     diagonals,
@@ -409,3 +410,26 @@ def test_riemannian_sampler_matches_weighted_angle_samples_in_two_dimensions():
     rie = DiagonalSpace(ls, L).sample(10000, rng, measure="riemannian")
     se = rie.x.std(0) / np.sqrt(min(len(rie), rie.ess))
     assert np.all(np.abs(rie.x.mean(0) - mean) <= 5 * np.hypot(se, se_ref))
+
+
+# -- the paper's picture ----------------------------------------------------------------
+def test_circular_configurations_start_along_the_axis_and_end_on_the_circle():
+    ls, L = np.array(EXAMPLE), 3.0
+    space = DiagonalSpace(ls, L)
+    rng = np.random.default_rng(21)
+    for flips in flip_patterns(5):
+        s = space.sample(200, rng)
+        z = circular_configurations(from_diagonals(ls, L, s.x, flips), L)
+        np.testing.assert_allclose(z[:, 0], ls[0], rtol=0, atol=1e-14)  # rod 1 on the positive real axis
+        np.testing.assert_allclose(np.abs(z[:, -1]), L, rtol=0, atol=1e-13)  # the end on |z| = L
+        rods = np.abs(np.diff(np.concatenate([np.zeros((200, 1)), z], axis=1), axis=1))
+        np.testing.assert_allclose(rods, np.broadcast_to(ls, rods.shape), rtol=0, atol=1e-13)
+        assert np.array_equal(diagonals(ls, L, s.hinges)[1], s.flips)
+        np.testing.assert_allclose(np.abs(z[:, 1:-1]), s.x, rtol=0, atol=1e-13)  # a rotation keeps the diagonals
+
+
+def test_sampled_configurations_figure_is_written(tmp_path):
+    fig = plot_sampled_configurations(cases=((EXAMPLE, 3.0), ((1, 1, 1, 1), 2.5)), per_panel=3)
+    assert len(fig.axes) == 4  # two chains by two flip vectors
+    fig.savefig(tmp_path / "c.png", dpi=40)
+    assert (tmp_path / "c.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
