@@ -76,9 +76,9 @@ def _nonempty_chain(lengths: int | ArrayLike, L: object) -> tuple[NDArray, float
         name = "L" if j == ls.size else f"lengths[{j}]"
         side = L if j == ls.size else float(ls[j])
         raise ValueError(
-            f"the configuration space is empty: {name} = {side!r} exceeds the sum {P - side:.17g} of the other "
+            f"the configuration space is empty: {name} = {side!r} exceeds the sum {P - side:.15g} of the other "
             f"sides of the polygon (l_1, ..., l_n, L), so no configuration closes; every side must be at most "
-            f"half the perimeter, here {P / 2:.17g}")
+            f"half the perimeter, here {P / 2:.15g}")
     return ls, L
 
 

@@ -131,7 +131,10 @@ def flip_patterns(n: int) -> tuple[NDArray, NDArray]:
 
 
 def plot_sampled_configurations(
-    cases: tuple[tuple[ArrayLike, float], ...] = CONFIGURATION_CASES, per_panel: int = 16, seed: int = 0
+    cases: tuple[tuple[ArrayLike, float], ...] = CONFIGURATION_CASES,
+    per_panel: int = 16,
+    seed: int = 0,
+    fig: Figure | None = None,
 ) -> Figure:
     """Random configurations in the style of the paper's Figures 5 and 6, one panel per chain and flip vector.
 
@@ -140,14 +143,15 @@ def plot_sampled_configurations(
     flip vector, are turned into configurations (:func:`~linkage.diagonals.from_diagonals`)
     and drawn as :func:`circular_configurations`: every chain starts at the origin
     along the positive real axis and ends on the dashed circle of radius ``L``.
-    Returns a matplotlib ``Figure`` (made without pyplot: no backend is chosen;
-    ``fig.savefig`` writes it, a notebook shows it).
+    Draws on ``fig`` (default: a new ``Figure`` outside pyplot, so no backend is
+    chosen; pass ``plt.figure(...)`` to have a notebook show it) and returns it.
     """
     import matplotlib
     from matplotlib.figure import Figure
 
     rng = np.random.default_rng(seed)
-    fig = Figure(figsize=(4.2 * len(cases), 8.4))
+    if fig is None:
+        fig = Figure(figsize=(4.2 * len(cases), 8.4))
     axes = fig.subplots(2, len(cases), squeeze=False)
     colours = matplotlib.colormaps["viridis"](np.linspace(0.05, 0.95, per_panel))
     for col, (lengths, L) in enumerate(cases):
