@@ -29,8 +29,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-import heyoka as hy
-
 from charts.chain_geometry import to_real
 from manifold.constrained import ConstrainedSystem
 from manifold.validation import check_real
