@@ -75,10 +75,14 @@ def _nonempty_chain(lengths: int | ArrayLike, L: object) -> tuple[NDArray, float
     if excess > RTOL * P:
         name = "L" if j == ls.size else f"lengths[{j}]"
         side = L if j == ls.size else float(ls[j])
+        n = ls.size
+        unit = ""
+        if np.all(ls == 1):
+            unit = f"; {n} unit rods close for 0 < L <= {n}, a sphere S^{n - 2} for {n - 2} < L < {n}"
         raise ValueError(
             f"the configuration space is empty: {name} = {side!r} exceeds the sum {P - side:.15g} of the other "
             f"sides of the polygon (l_1, ..., l_n, L), so no configuration closes; every side must be at most "
-            f"half the perimeter, here {P / 2:.15g}")
+            f"half the perimeter, here {P / 2:.15g}{unit}")
     return ls, L
 
 
