@@ -67,8 +67,13 @@ def hinges_from_rods(rods: ArrayLike) -> NDArray:
 
 
 def closure_residual(hinges: ArrayLike, L: float, lengths: ArrayLike = 1.0) -> NDArray:
-    """``max_k | |e_k| - l_k |``: 0 for a configuration of the closed chain of rods ``lengths`` (default unit rods)."""
-    return np.max(np.abs(np.abs(rod_vectors(hinges, L)) - np.asarray(lengths, dtype=float)), axis=-1)
+    """``max_k | |e_k| - l_k | / l_k``: 0 for a configuration of the closed chain of rods ``lengths`` (default unit rods).
+
+    Relative to each rod, so that a chain and the same chain scaled by any
+    factor close equally well (for unit rods it is the absolute error).
+    """
+    ls = np.asarray(lengths, dtype=float)
+    return np.max(np.abs(np.abs(rod_vectors(hinges, L)) - ls) / ls, axis=-1)
 
 
 def validate_permutation(order: ArrayLike, n: int) -> NDArray:

@@ -6,7 +6,7 @@ constraints
 
 .. math::
 
-    c_k(x) = |e_k|^2 - l_k^2 = 0, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1}.
+    c_k(x) = |e_k|^2 / l_k^2 - 1 = 0, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1}.
 
 With the constant kinetic-energy metric ``K = A (x) I_2`` of
 :attr:`Chain.ambient_metric` and ``G = dc/dx`` (``n x 2(n-1)``), the
@@ -105,7 +105,7 @@ def integrate_ambient(
         (:meth:`Chain.check_configuration`, raises ``ConfigurationError``).
     velocity0
         Complex initial hinge velocities, finite and tangent:
-        ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)`` (``|v|`` Euclidean),
+        ``max_k l_k |(G v)_k| <= tangent_tol * max(1, |v|)`` (``|v|`` Euclidean),
         else ``ValueError`` -- unless ``project_velocity``.
     t_final
         Finite, nonzero end time; negative integrates backward from ``t = 0``.

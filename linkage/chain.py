@@ -276,16 +276,16 @@ class Chain:
         return rod_vectors(self.as_hinges(hinges), self.L)
 
     def closure_residual(self, hinges: ArrayLike) -> NDArray:
-        """``max_k | |e_k| - l_k |``: how far a configuration is from closing (0 if it does)."""
+        """``max_k | |e_k| - l_k | / l_k``: how far a configuration is from closing, relative to each rod (0 if it does)."""
         return closure_residual(self.as_hinges(hinges), self.L, self.lengths)
 
     def check_configuration(self, hinges: ArrayLike, tol: float = 1e-9) -> NDArray:
-        """Return ``hinges`` as a complex array if it closes to ``tol``; raise otherwise."""
+        """Return ``hinges`` as a complex array if it closes to ``tol`` (:meth:`closure_residual`); raise otherwise."""
         h = self.as_hinges(hinges)
         res = closure_residual(h, self.L, self.lengths)
         if np.any(res > tol):
             raise ConfigurationError(
-                f"configuration does not close: max rod-length error {np.max(res):.3g} exceeds tol = {tol:g}"
+                f"configuration does not close: max relative rod-length error {np.max(res):.3g} exceeds tol = {tol:g}"
             )
         return h
 

@@ -7,9 +7,15 @@ configurations are the zeros of the ``n`` rod constraints
 
 .. math::
 
-    c_k(x) = |e_k|^2 - l_k^2, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1}
+    c_k(x) = \\frac{|e_k|^2}{l_k^2} - 1, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1}
 
-(rod lengths ``l_k``: :attr:`Chain.lengths`), and the tangent space at ``x`` is the null space of ``G = dc/dx``.  Every constrained
+(rod lengths ``l_k``: :attr:`Chain.lengths`), and the tangent space at ``x``
+is the null space of ``G = dc/dx``.  The constraints are relative (``|e_k|^2 - l_k^2``
+divided by ``l_k^2``; for unit rods the same numbers): the configuration space
+and its geodesics do not depend on that scaling, but every tolerance on ``c``
+(closure checks, projections, the drift check of the hinge method) does, and
+relative constraints make a chain and the same chain scaled by any factor pass
+or fail alike.  Every constrained
 method in hinge space (the reference integrator of :mod:`linkage.ambient`,
 RATTLE, a hinge-coordinate Taylor method) is built from one operation, the
 K-smallest solution ``d`` of ``G d = r``:
@@ -28,6 +34,8 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+import heyoka as hy
 
 from charts.chain_geometry import to_real
 from manifold.constrained import ConstrainedSystem
@@ -84,7 +92,7 @@ class HingeConstraints:
         return np.diff(np.concatenate([[[0.0, 0.0]], v.reshape(-1, 2), [[0.0, 0.0]]]), axis=0)
 
     def constraints(self, x: NDArray) -> NDArray:
-        """The constraint values ``c_k(x) = |e_k|^2 - l_k^2``, ``k = 1..n``.
+        """The constraint values ``c_k(x) = |e_k|^2 / l_k^2 - 1``, ``k = 1..n``.
 
         Parameters
         ----------
@@ -96,14 +104,14 @@ class HingeConstraints:
         numpy.ndarray
             ``c``, shape ``(n,)``; zero exactly on the configuration space.
         """
-        return np.sum(self._rods(x) ** 2, axis=1) - self.lengths**2
+        return np.sum(self._rods(x) ** 2, axis=1) / self.lengths**2 - 1.0
 
     def jacobian(self, x: NDArray) -> NDArray:
         """The constraint Jacobian ``G = dc/dx``.
 
-        Since ``e_k = p_k - p_{k-1}`` with fixed pins, ``dc_k = 2 e_k . (dp_k - dp_{k-1})``:
-        row ``k`` holds ``+2 e_k`` in the columns of hinge ``k`` (for ``k <= n-1``)
-        and ``-2 e_k`` in those of hinge ``k-1`` (for ``k >= 2``).
+        Since ``e_k = p_k - p_{k-1}`` with fixed pins, ``dc_k = 2 e_k . (dp_k - dp_{k-1}) / l_k^2``:
+        row ``k`` holds ``+2 e_k / l_k^2`` in the columns of hinge ``k`` (for ``k <= n-1``)
+        and ``-2 e_k / l_k^2`` in those of hinge ``k-1`` (for ``k >= 2``).
 
         Parameters
         ----------
@@ -115,11 +123,11 @@ class HingeConstraints:
         numpy.ndarray
             ``G``, shape ``(n, 2(n-1))``.
         """
-        E = self._rods(x)
+        E = 2.0 * self._rods(x) / self.lengths[:, None] ** 2
         j = np.arange(self.n - 1)
         G = np.zeros((self.n, self.n - 1, 2))
-        G[j, j] = 2.0 * E[:-1]
-        G[j + 1, j] = -2.0 * E[1:]
+        G[j, j] = E[:-1]
+        G[j + 1, j] = -E[1:]
         return G.reshape(self.n, self.ambient_dim)
 
     def min_norm_correction(self, G: NDArray, r: NDArray) -> NDArray:
@@ -156,14 +164,14 @@ class HingeConstraints:
         """The acceleration of the free constrained motion at ``(x, v)``.
 
         The equations of motion ``K x'' = G^T lambda`` together with the
-        constraints differentiated twice, ``c_k'' = 2 e_k . e_k'' + 2 |e_k'|^2 = 0``,
-        i.e. ``G x'' = -2 |e'|^2``, give
+        constraints differentiated twice, ``l_k^2 c_k'' = 2 e_k . e_k'' + 2 |e_k'|^2 = 0``,
+        i.e. ``G x'' = -2 |e'|^2 / l^2``, give
 
         .. math::
 
-            x'' = K^{-1} G^T (G K^{-1} G^T)^{-1} (-2 |e'|^2),
+            x'' = K^{-1} G^T (G K^{-1} G^T)^{-1} (-2 |e'|^2 / l^2),
 
-        the :meth:`min_norm_correction` for ``r_k = -2 |e_k'|^2``.  Its solutions
+        the :meth:`min_norm_correction` for ``r_k = -2 |e_k'|^2 / l_k^2``.  Its solutions
         with tangent start velocities are the constant-speed geodesics of the
         kinetic-energy metric on the configuration space.
 
@@ -178,7 +186,7 @@ class HingeConstraints:
             ``x''``, shape ``(2(n-1),)``.
         """
         Ed = self._rod_velocities(v)
-        return self.min_norm_correction(self.jacobian(x), -2.0 * np.sum(Ed**2, axis=1))
+        return self.min_norm_correction(self.jacobian(x), -2.0 * np.sum(Ed**2, axis=1) / self.lengths**2)
 
     def project_velocity(self, x: NDArray, v: NDArray) -> NDArray:
         """K-orthogonal projection of ``v`` onto the tangent space ``ker G(x)``.
@@ -261,11 +269,13 @@ def start_state(
         The chain; its lengths must be generic (:meth:`Chain.check_generic`, else
         ``ValueError`` naming the collinear configurations).
     hinges0
-        Complex initial hinges; must close to ``1e-9`` (else ``ConfigurationError``).
+        Complex initial hinges; must close to ``1e-9`` relative to each rod
+        (:meth:`Chain.check_configuration`, else ``ConfigurationError``).
     velocity0
         Complex initial hinge velocities, ``n - 1`` finite entries, tangent:
-        ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)`` (else ``ValueError``)
-        unless ``project_velocity``.
+        ``max_k l_k |(G v)_k| <= tangent_tol * max(1, |v|)`` (``l_k |(G v)_k|`` is
+        twice the rate of change of rod length ``k``; else ``ValueError``) unless
+        ``project_velocity``.
     t_final
         End time, finite and nonzero (:func:`manifold.validation.check_real`).
     tangent_tol
@@ -293,11 +303,11 @@ def start_state(
         energy = 0.5 * v0 @ system.K @ v0
     if not np.isfinite(energy):
         raise ValueError(f"velocity0 gives a non-finite kinetic energy (max |velocity0| = {np.max(np.abs(v0)):.3g})")
-    residual = np.max(np.abs(system.jacobian(x0) @ v0))
+    residual = np.max(system.lengths * np.abs(system.jacobian(x0) @ v0))  # 2 |d|e_k|/dt|, a velocity
     if residual > tangent_tol * max(1.0, np.linalg.norm(v0)):
         if not project_velocity:
             raise ValueError(
-                f"velocity0 is not tangent to the configuration space: max_k |(G v)_k| = {residual:.3g} "
+                f"velocity0 is not tangent to the configuration space: max_k l_k |(G v)_k| = {residual:.3g} "
                 f"exceeds tangent_tol * max(1, |v|) = {tangent_tol * max(1.0, np.linalg.norm(v0)):.3g} "
                 "(pass project_velocity=True to project it)"
             )
@@ -308,8 +318,8 @@ def start_state(
 class ChainSystem(ConstrainedSystem):
     """The chain's configuration space as a :class:`manifold.constrained.ConstrainedSystem`.
 
-    Hinge space ``R^(2(n-1))`` (interleaved real hinges), constraints
-    ``c_k = |e_k|^2 - l_k^2`` (``e_1 = p_1``, ``e_k = p_k - p_{k-1}``,
+    Hinge space ``R^(2(n-1))`` (interleaved real hinges), relative constraints
+    ``c_k = |e_k|^2 / l_k^2 - 1`` (``e_1 = p_1``, ``e_k = p_k - p_{k-1}``,
     ``e_n = L - p_{n-1}``) and the kinetic-energy metric ``K = A (x) I_2``.
     ``L`` and the lengths are runtime parameters, so one compiled integrator
     per ``n`` (and sparsity of ``K``) serves every chain of ``n`` rods.
@@ -342,14 +352,19 @@ class ChainSystem(ConstrainedSystem):
         return np.concatenate([[self.chain.L], self.chain.lengths])
 
     @property
+    def length_scale(self) -> float:
+        """The mean rod length (1 for unit rods): the Baumgarte rate is speed / length, an angular rate."""
+        return float(np.mean(self.chain.lengths))
+
+    @property
     def metric_matrix(self) -> NDArray:
         return self.chain.ambient_metric
 
     def constraint_expressions(self, x: list, p: list, fp_type) -> list:
-        """``|e_k|^2 - l_k^2`` with the pins ``0`` and ``L = p[0]``, ``l_k = p[k]``."""
-        L, lengths = p[0], p[1:]
+        """``|e_k|^2 / l_k^2 - 1`` with the pins ``0`` and ``L = p[0]``, ``l_k = p[k]``."""
+        L, lengths, one = p[0], p[1:], hy.expression(fp_type(1.0))
         hx, hy_ = x[0::2], x[1::2]
         rods = [(hx[0], hy_[0])]  # e_1 = p_1
         rods += [(hx[k] - hx[k - 1], hy_[k] - hy_[k - 1]) for k in range(1, self.chain.n - 1)]
         rods.append((L - hx[-1], -hy_[-1]))  # e_n = L - p_{n-1}
-        return [ex * ex + ey * ey - lk * lk for (ex, ey), lk in zip(rods, lengths)]
+        return [(ex * ex + ey * ey) / (lk * lk) - one for (ex, ey), lk in zip(rods, lengths)]

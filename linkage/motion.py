@@ -81,7 +81,7 @@ class ChainMotion:
 
     @property
     def closure_residuals(self) -> NDArray:
-        """``max_k | |e_k| - l_k |`` at :attr:`times` (0 for an exact configuration)."""
+        """``max_k | |e_k| - l_k | / l_k`` at :attr:`times` (0 for an exact configuration)."""
         return self.chain.closure_residual(self.hinges)
 
     @property
@@ -157,7 +157,8 @@ def free_motion(
         configurations otherwise.
     hinges0, velocity0
         Complex interior hinges (must close to ``1e-9``) and their velocity
-        (tangent: ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)``).
+        (tangent: ``max_k l_k |(G v)_k| <= tangent_tol * max(1, |v|)``,
+        :func:`linkage.constraints.start_state`).
     t_final
         Final time (finite, nonzero; negative integrates backward).
     method

@@ -161,10 +161,15 @@ def test_closure_uses_the_rod_lengths():
     chain = Chain([3.0, 4.0], 5.0)
     h = np.array([(9 + 12j) / 5])
     assert chain.closure_residual(h) < 1e-15
-    assert chain.closure_residual(h * 1.01) == pytest.approx(0.03, rel=1e-6)  # |p_1| = 3.03, rod 2 ~ 3.99
+    # |p_1| = 3.03 is 1% long; rod 2, |5 - 1.01 p_1| = sqrt(16.0010) ~ 4.0001, is off by 3e-5 relative
+    assert chain.closure_residual(h * 1.01) == pytest.approx(0.01, rel=1e-9)
     with pytest.raises(ConfigurationError, match="does not close"):
         chain.check_configuration(h * 1.01)
     assert Chain(2, 5 / 3).closure_residual(h / 3) == pytest.approx(1 / 3, rel=1e-14)  # rods 1, 4/3: unit rods miss by 1/3
+    # relative to each rod: the same triangle 1000 times smaller closes as well, and fails as much
+    small = Chain([3e-3, 4e-3], 5e-3)
+    assert small.closure_residual(h * 1e-3) < 1e-15
+    assert small.closure_residual(h * 1.01e-3) == pytest.approx(0.01, rel=1e-9)
     th = chain.angles(h)
     assert np.allclose(th, [np.arctan2(12, 9), np.arctan2(-12, 16)], rtol=0, atol=1e-15)
     np.testing.assert_allclose(chain.hinges_from_angles(th), h, rtol=0, atol=1e-15)

@@ -6,7 +6,7 @@ The chain moves in hinge space ``R^(2(n-1))`` (interleaved real hinge vector
 
 .. math::
 
-    c_k(x) = |e_k|^2 - l_k^2 = 0, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1},
+    c_k(x) = |e_k|^2 / l_k^2 - 1 = 0, \\qquad e_1 = p_1,\\; e_k = p_k - p_{k-1},\\; e_n = L - p_{n-1},
 
 with Jacobian ``G = dc/dx`` (``n x 2(n-1)``); see :mod:`linkage.constraints`.
 With no potential, one RATTLE step of size ``h`` (Andersen 1983; Leimkuhler &
@@ -74,7 +74,7 @@ class RattleSolution:
     energy
         Kinetic energy ``1/2 v^T K v`` at ``t`` (bounded oscillation ``O(h^2)``, no drift).
     constraint_residual
-        ``max_k | |e_k| - l_k |`` at ``t`` (Newton tolerance level after the first step).
+        ``max_k | |e_k| - l_k | / l_k`` at ``t`` (Newton tolerance level after the first step).
     n_steps
         Number of RATTLE steps taken (the last one possibly shortened).
     newton_iterations
@@ -186,7 +186,7 @@ def integrate_rattle(
         (:meth:`Chain.check_configuration`, raises ``ConfigurationError``).
     velocity0
         Complex initial hinge velocities, finite and tangent:
-        ``max_k |(G v)_k| <= tangent_tol * max(1, |v|)``, else ``ValueError``
+        ``max_k l_k |(G v)_k| <= tangent_tol * max(1, |v|)``, else ``ValueError``
         -- unless ``project_velocity``.
     t_final
         Finite, nonzero end time; negative integrates backward (steps ``-h``).
