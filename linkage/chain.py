@@ -74,6 +74,7 @@ class Chain:
         self.n, self.L = validate_chain(n, L)
         self.hinge_masses = _positive_vector("hinge_masses", hinge_masses, self.n - 1, allow_zero=False)
         self.rod_densities = _positive_vector("rod_densities", rod_densities, self.n, allow_zero=True)
+        self._atlases: dict = {}  # built once: an n = 8 atlas costs ~25 ms
 
     def __repr__(self) -> str:
         return f"Chain(n={self.n}, L={self.L!r})"
@@ -104,8 +105,12 @@ class Chain:
 
     # -- charts -------------------------------------------------------------------
     def atlas(self, switch_threshold: float = 0.25) -> SuspensionAtlas:
-        """The atlas of ``n`` cyclically relabeled suspension charts."""
-        return SuspensionAtlas(self.n, self.L, switch_threshold)
+        """The atlas of ``n`` cyclically relabeled suspension charts (built once per ``switch_threshold``)."""
+        if not isinstance(switch_threshold, (int, float)):  # not a number: the atlas refuses it with its message
+            return SuspensionAtlas(self.n, self.L, switch_threshold)
+        if switch_threshold not in self._atlases:
+            self._atlases[switch_threshold] = SuspensionAtlas(self.n, self.L, switch_threshold)
+        return self._atlases[switch_threshold]
 
     def metric(self, atlas: SuspensionAtlas | None = None) -> InducedMetric:
         """The kinetic-energy metric ``g = J^T K J`` on ``atlas`` (default: :meth:`atlas`)."""

@@ -35,6 +35,7 @@ A system provides its constraints (and, optionally, hand-written ``G`` and
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from abc import ABC, abstractmethod
@@ -123,9 +124,15 @@ class ConstrainedSystem(ABC):
 
 
 def _exact_inverse(K: NDArray) -> list[list[Fraction]]:
-    """``K^{-1}`` in exact rationals (Gauss-Jordan on the float64 entries taken exact)."""
-    n = K.shape[0]
-    A = [[Fraction(float(K[i, j])) for j in range(n)] + [Fraction(int(i == j)) for j in range(n)] for i in range(n)]
+    """``K^{-1}`` in exact rationals (Gauss-Jordan on the float64 entries taken exact), cached per ``K``."""
+    return _exact_inverse_of(K.shape[0], tuple(float(k) for k in K.ravel()))
+
+
+@functools.lru_cache(maxsize=256)
+def _exact_inverse_of(n: int, entries: tuple[float, ...]) -> list[list[Fraction]]:
+    # rational arithmetic costs ~1 ms per entry at N = 14: solves reuse the result instead of redoing it
+    A = [[Fraction(entries[i * n + j]) for j in range(n)] + [Fraction(int(i == j)) for j in range(n)]
+         for i in range(n)]
     for col in range(n):
         piv = max(range(col, n), key=lambda r: abs(A[r][col]))
         if A[piv][col] == 0:
