@@ -63,6 +63,8 @@ __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedSystem", "compil
 Expr = hy.expression
 #: How drift off the constraints is held back (see the module docstring).
 STABILISATIONS = ("baumgarte", "projection", "none")
+#: Largest ambient dimension integrated with unrolled (non-compact) code by default; see ``solve_constrained``.
+UNROLL_MAX_DIM = 8
 #: A start farther than this from ``c = 0`` (``max_k |c_k|``) is refused rather than moved.
 START_CONSTRAINT_TOLERANCE = 1e-9
 
@@ -412,12 +414,14 @@ def solve_constrained(
         Time between projections for ``"projection"``, ``> 0``.
     compact_mode
         heyoka's compact mode; ``None`` (default) chooses by measurement
-        (``benchmarks/method_speed.py``): off for float64 and long double,
-        where unrolled code steps 1.8x faster (its cold compile, 5-25 s, is
-        paid once per ``n`` and mass sparsity: heyoka caches it on disk); on
-        for real128 and :class:`~manifold.precision.MultiPrecision`, where
-        software arithmetic dominates the step and unrolled code at their high
-        Taylor orders only costs compile time (gigabytes at 150 bits).
+        (``benchmarks/method_speed.py``, section 5): unrolled code for float64
+        and long double up to ``N = UNROLL_MAX_DIM`` (a chain of 5 rods), where
+        it steps 2-6x faster and its cold compile (tens of seconds, paid once:
+        heyoka caches it on disk) is tolerable; compact beyond (an unrolled
+        n = 8 chain took 104 s to compile for a 2.2x faster step) and for
+        real128 and :class:`~manifold.precision.MultiPrecision`, whose
+        software arithmetic dominates the step (unrolled code at 150 bits
+        exhausted memory).
     dense
         Keep the Taylor coefficients of every step, for ``sol(t)`` at any time.
     t_eval
@@ -447,7 +451,8 @@ def solve_constrained(
     rate = check_real("rate", rate, positive=True)
     interval = check_real("projection_interval", projection_interval, positive=True)
     if compact_mode is None:
-        compact_mode = not (is_double(fp_type) or fp_type is np.longdouble)
+        hardware = is_double(fp_type) or fp_type is np.longdouble
+        compact_mode = not (hardware and system.ambient_dim <= UNROLL_MAX_DIM)
     compact_mode, dense, throw = (check_bool("compact_mode", compact_mode), check_bool("dense", dense),
                                   check_bool("throw", throw))
     N = system.ambient_dim
