@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold import GeodesicSolution, solve_chart_exp_ode
 from manifold.constrained import solve_constrained
+from manifold.progress import ProgressArgument
 
 from .chain import Chain
 from .constraints import ChainSystem, start_state
@@ -121,6 +122,7 @@ def free_motion(
     method: str = "charts",
     tangent_tol: float = 1e-9,
     project_velocity: bool = False,
+    progress: ProgressArgument = None,
     **kwargs: Any,
 ) -> ChainMotion:
     """Integrate the chain's force-free motion from ``hinges0`` with hinge velocity ``velocity0``.
@@ -153,6 +155,11 @@ def free_motion(
         Tolerance of the tangency check.
     project_velocity
         Project a non-tangent ``velocity0`` K-orthogonally instead of refusing it.
+    progress
+        ``True`` draws a tqdm bar of the time reached and prints a line per
+        compile (what is compiled, and that heyoka caches it on disk); a
+        callable receives each :class:`manifold.progress.ProgressUpdate`
+        instead.  See :mod:`manifold.progress`.
     **kwargs
         Passed on: to :func:`manifold.solve_chart_exp_ode` for ``"charts"``
         (``stepper``, ``fp_type``, ``tol``, ``q_out``, ``form``, ``dense``,
@@ -165,7 +172,9 @@ def free_motion(
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
     # velocity0 is tangent to tangent_tol (checked above): the solvers' own projection only removes rounding
     if method == "hinges":
-        solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, metric=chain.metric(), **kwargs)
+        solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, metric=chain.metric(), progress=progress,
+                                     **kwargs)
     else:
-        solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, project_velocity=True, **kwargs)
+        solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, project_velocity=True, progress=progress,
+                                       **kwargs)
     return ChainMotion(chain, solution)

@@ -49,7 +49,7 @@ class CompiledFamily(ArtefactStore):
     """
 
     def __init__(self, family: ChartFamily) -> None:
-        super().__init__()
+        super().__init__(repr(family))
         self.family = family
         self.layout = Layout.of(family)
         self.n_quality = len(self.pieces(float).quality)

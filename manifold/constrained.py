@@ -54,6 +54,7 @@ from .artefacts import ArtefactStore
 from .expression_linalg import ldl_solve
 from .metric import InducedMetric
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
+from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import MAX_TOLERANCE, taylor_advance
 from .validation import check_bool, check_real, real_array
@@ -280,7 +281,7 @@ class CompiledConstrained(ArtefactStore):
     """
 
     def __init__(self, system: ConstrainedSystem, layout: ConstrainedLayout) -> None:
-        super().__init__()
+        super().__init__(repr(system))
         self.system, self.layout = system, layout
 
     def __repr__(self) -> str:
@@ -385,6 +386,7 @@ def solve_constrained(
     t_eval: ArrayLike | None = None,
     metric: InducedMetric | None = None,
     throw: bool = True,
+    progress: ProgressArgument = None,
 ) -> GeodesicSolution:
     """Integrate the geodesic of ``system`` from ``(x0, v0)`` with heyoka's Taylor method, in ambient coordinates.
 
@@ -433,6 +435,11 @@ def solve_constrained(
     throw
         Raise :class:`~manifold.solution.GeodesicIntegrationError` with the
         partial solution on failure (default), or return it with ``status`` set.
+    progress
+        Report compiles and the time reached, as in
+        :func:`manifold.solve_chart_exp_ode`: ``True`` (a tqdm bar), a
+        callable taking a :class:`~manifold.progress.ProgressUpdate`,
+        ``False``, or ``None`` (only inside a :func:`manifold.progress.reporting` block).
 
     Returns
     -------
@@ -443,6 +450,7 @@ def solve_constrained(
     """
     wall0 = time.perf_counter()
     fp_type = resolve_fp_type(fp_type)
+    report = as_callback(progress)
     t_final = check_real("t_final", t_final, nonzero=True)
     if tol is not None:
         tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
@@ -471,7 +479,8 @@ def solve_constrained(
 
     comp = compiled_constrained(system)
     t_compile = time.perf_counter()
-    geo = _Geometry(system, fp_type)
+    with reporting(report):  # compiles the geometry function
+        geo = _Geometry(system, fp_type)
     c0 = np.max(np.abs(geo(x0[None, :].astype(float), v0[None, :])[0].astype(float)))
     if not c0 <= START_CONSTRAINT_TOLERANCE:
         raise ValueError(f"x0 is not on the constraint manifold: max_k |c_k(x0)| = {c0:.3g} exceeds "
@@ -493,7 +502,8 @@ def solve_constrained(
     ends = [t_final] if stabilisation != "projection" else _chunk_ends(t_final, interval)
     status, message, n_grid, project_seconds = SolveStatus.SUCCESS, "reached t_final", 0, 0.0
     t = fp_type(0.0)
-    with comp.integrator(fp_type, tol, stabilisation == "baumgarte", compact_mode) as ta:
+    with solve_progress(report, sol) as reports, comp.integrator(fp_type, tol, stabilisation == "baumgarte",
+                                                                      compact_mode) as ta:
         compile_seconds = time.perf_counter() - t_compile
         pars = comp.layout.pack(system, alpha, fp_type)
         for end in ends:
@@ -507,6 +517,8 @@ def solve_constrained(
             if grid is not None:
                 n_grid = sol.record_grid(grid, n_grid, adv, sign, lambda s: (s[:, :N], s[:, N:]))
             t, x, v = adv.t, adv.y[:N], adv.y[N:]
+            if reports is not None:
+                reports.segment(t, "ambient coordinates")
             violation = sol.energy_violation(recorded, eps, "ambient coordinates")
             drift = float(np.max(np.abs(c.astype(float)))) if c.size else 0.0
             bound = 1e3 * np.sqrt(sol.n_steps + 1) * eps
@@ -528,6 +540,8 @@ def solve_constrained(
     sol.final_state = (None, x, v)
     sol.status, sol.message = status, message
     sol.stats = SolverStats(sol.n_steps, 0, 0, compile_seconds, project_seconds, time.perf_counter() - wall0)
+    if reports is not None:
+        reports.done(t, message)
     if status is not SolveStatus.SUCCESS and throw:
         raise GeodesicIntegrationError(message, sol)
     return sol
