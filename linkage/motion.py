@@ -87,14 +87,17 @@ class ChainMotion:
 
     @property
     def success(self) -> bool:
+        """True if the solve reached ``t_final``."""
         return self.solution.success
 
     @property
     def n_steps(self) -> int:
+        """Accepted integration steps."""
         return self.solution.n_steps
 
     @property
     def n_switches(self) -> int:
+        """Number of chart switches."""
         return self.solution.n_switches
 
     @property

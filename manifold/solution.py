@@ -81,7 +81,9 @@ class DenseOutput(Protocol):
     def __call__(self, ts: NDArray) -> NDArray: ...
 
     @property
-    def nbytes(self) -> int: ...
+    def nbytes(self) -> int:
+        """Bytes held by the continuous output."""
+        ...
 
 
 class TaylorDense:
@@ -98,6 +100,7 @@ class TaylorDense:
 
     @property
     def nbytes(self) -> int:
+        """Bytes held: the step times and the Taylor coefficients."""
         return int(self.times.nbytes + self.tcs.nbytes)
 
     def __call__(self, ts: NDArray) -> NDArray:
@@ -119,6 +122,7 @@ class CallableDense:
 
     @property
     def nbytes(self) -> int:
+        """Bytes held, estimated as 8 doubles per step and component (DOP853's interpolant)."""
         return self._nbytes
 
     def __call__(self, ts: NDArray) -> NDArray:
@@ -199,6 +203,7 @@ class GeodesicSolution:
 
     @property
     def success(self) -> bool:
+        """True if the solve reached ``t_final`` (``status`` is :attr:`SolveStatus.SUCCESS`)."""
         return self.status is SolveStatus.SUCCESS
 
     @property
@@ -208,10 +213,12 @@ class GeodesicSolution:
 
     @property
     def n_switches(self) -> int:
+        """Number of chart switches (angle wraps are not switches)."""
         return len(self.switches)
 
     @property
     def n_steps(self) -> int:
+        """Accepted steps of the stepper, over all segments."""
         return sum(s.n_steps for s in self.segments)
 
     @property

@@ -181,10 +181,12 @@ class ConfigurationCurve:
     # evaluation --------------------------------------------------------------------
     @property
     def n(self) -> int:
+        """Number of joints ``n`` (coordinates ``t_1 .. t_n``)."""
         return len(self.a)
 
     @property
     def is_rational(self) -> bool:
+        """True for a rational curve (no square root ``w = sqrt(g(t))``)."""
         return self.g is None
 
     def expressions(self) -> tuple:
