@@ -271,7 +271,7 @@ def draw_energy_error(ax: Axes, motion: ChainMotion) -> Axes:
 
 
 def draw_chart_timeline(ax: Axes, motion: ChainMotion) -> Axes:
-    """Draw which chart integrated the motion when: one bar per segment at the chart's row, switches as arrows.
+    """Draw which chart integrated the motion when: one bar per stay in a chart, at its row; switches as lines.
 
     Row ``i`` is chart ``i`` of the atlas (labelled with its id), coloured
     ``C<i>`` as in :func:`draw_sphere_path`; a segment integrated in hinge
@@ -287,9 +287,10 @@ def draw_chart_timeline(ax: Axes, motion: ChainMotion) -> Axes:
     sol = motion.solution
     ids = list(sol.metric.atlas.ids)
     rows = [-1 if seg.chart is None else seg.chart for seg in sol.segments]
-    for seg, row in zip(sol.segments, rows):
-        ax.plot([float(seg.t_start), float(seg.t_end)], [row, row], "-", lw=6, solid_capstyle="butt",
-                color="0.5" if row < 0 else f"C{row}")
+    first = [k for k in range(len(rows)) if k == 0 or rows[k] != rows[k - 1]]  # an angle wrap keeps the chart
+    for k, last in zip(first, first[1:] + [len(rows)]):
+        ax.plot([float(sol.segments[k].t_start), float(sol.segments[last - 1].t_end)], [rows[k], rows[k]], "-", lw=6,
+                solid_capstyle="butt", color="0.5" if rows[k] < 0 else f"C{rows[k]}")
     for sw in sol.switches:
         ax.plot([sw.time, sw.time], [sw.from_chart, sw.to_chart], "-", color="k", lw=0.6, gid=SWITCH_GID)
     ticks = ([-1] if -1 in rows else []) + list(range(len(ids)))

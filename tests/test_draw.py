@@ -113,6 +113,7 @@ def test_the_chart_timeline_covers_the_run_and_switches_where_the_log_says(motio
     starts, ends, rows = (np.array([b[0, 0] for b in bars]), np.array([b[1, 0] for b in bars]),
                           np.array([b[0, 1] for b in bars]))
     assert starts[0] == 0 and ends[-1] == T and np.array_equal(starts[1:], ends[:-1])  # no gap, no overlap
+    assert len(bars) == motion.n_switches + 1  # one bar per stay in a chart
     for s in motion.solution.switches:
         before, after = np.flatnonzero(ends == s.time), np.flatnonzero(starts == s.time)
         assert rows[before[0]] == s.from_chart and rows[after[0]] == s.to_chart
