@@ -358,7 +358,7 @@ def animation(
     artists: list[Any] = [rods]
     if sphere:
         ax3 = fig.add_subplot(1, 2, 2, projection="3d")
-        draw_sphere_path(ax3, motion, ts, switches=False)
+        draw_sphere_path(ax3, motion, np.linspace(ts.min(), ts.max(), 2000), switches=False)  # smooth, not per frame
         s = sphere_coordinates(motion, ts)[:, :3]
         (dot,) = ax3.plot(*s[:1].T, "o", color="k", ms=7)
         artists.append(dot)
@@ -372,6 +372,7 @@ def animation(
         return artists
 
     update(0)
+    fig.tight_layout()
     return FuncAnimation(fig, update, frames=len(ts), interval=1000.0 / fps, blit=False)
 
 
