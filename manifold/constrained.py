@@ -176,6 +176,7 @@ class ConstrainedLayout:
 
     @classmethod
     def of(cls, system: ConstrainedSystem) -> "ConstrainedLayout":
+        """The layout of ``system``: its parameter count and the nonzero patterns of ``K^{-1}`` (exact) and ``K``."""
         K = np.asarray(system.metric_matrix, dtype=float)
         Ki = _exact_inverse(K)
         N = K.shape[0]
