@@ -52,7 +52,7 @@ def pole_start(chain: Chain) -> tuple[np.ndarray, np.ndarray]:
         a[0] = np.pi / 2
     a[-1] = 0.4
     p0 = atlas.get_point(0, a)
-    j = atlas.get_chart_index(p0)
+    j = int(atlas.get_chart_index(p0))  # one point: one index
     rng = np.random.default_rng(1)
     v0 = atlas.charts[j].tangent_vector(atlas.get_parameters(j, p0), rng.normal(size=chain.dim))
     v0 /= np.sqrt(2 * chain.metric(atlas).ambient_kinetic_energy(v0))
@@ -110,7 +110,7 @@ def figure(chain: Chain, motion: ChainMotion, ts: NDArray, distance: NDArray, ou
         draw_chain_at(fig.add_subplot(grid[:, 0]), motion, ts[-1])
     ax = fig.add_subplot(grid[0, 1])
     picks = np.linspace(0, min(len(ts) - 1, len(ts) // 20), 6).astype(int)
-    draw_configurations(ax, motion(ts[picks])[0], chain.L, labels=[f"t = {ts[k]:.2f}" for k in picks])
+    draw_configurations(ax, list(motion(ts[picks])[0]), chain.L, labels=[f"t = {ts[k]:.2f}" for k in picks])
     ax.set_title(f"snapshots, n = {chain.n}, L = {chain.L}")
     draw_energy_error(fig.add_subplot(grid[0, 2]), motion)
     draw_chart_timeline(fig.add_subplot(grid[1, 1]), motion)

@@ -121,8 +121,21 @@ def _times(motion: ChainMotion, times: ArrayLike | None, samples: int) -> NDArra
     return ts
 
 
+def _integer(name: str, value: object, minimum: int) -> int:
+    """``value`` as an ``int`` if it is an integer ``>= minimum``, else a ``ValueError`` naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _atlas_ids(motion: ChainMotion) -> list:
+    """The chart ids of the motion's atlas (the chain's own atlas for a method that was given none)."""
+    metric = motion.solution.metric
+    return list((motion.chain.atlas() if metric is None else metric.atlas).ids)
+
+
 def _chart_label(motion: ChainMotion, chart: int) -> str:
-    return f"chart {motion.solution.metric.atlas.ids[chart]}"
+    return f"chart {_atlas_ids(motion)[chart]}"
 
 
 def sphere_coordinates(motion: ChainMotion, times: ArrayLike) -> NDArray:
@@ -208,11 +221,13 @@ def draw_sphere_path(
     matplotlib.axes.Axes
         ``ax``.
     """
+    from mpl_toolkits.mplot3d.axes3d import Axes3D  # ships with matplotlib
+
     n = motion.chain.n
     if n < 4:
         raise ValueError(f"the path on the configuration sphere needs n >= 4 (S^(n-2) drawn in R^3), got n = {n}: "
                          "for n = 3 the configuration space is a circle")
-    if getattr(ax, "name", None) != "3d":
+    if not isinstance(ax, Axes3D):
         raise ValueError(f"ax must be a 3-d Axes (fig.add_subplot(projection='3d')), got {type(ax).__name__}")
     ts = _times(motion, times, samples)
     s = sphere_coordinates(motion, ts)[:, :3]
@@ -285,7 +300,7 @@ def draw_chart_timeline(ax: Axes, motion: ChainMotion) -> Axes:
         ``ax``.
     """
     sol = motion.solution
-    ids = list(sol.metric.atlas.ids)
+    ids = _atlas_ids(motion)
     rows = [-1 if seg.chart is None else seg.chart for seg in sol.segments]
     first = [k for k in range(len(rows)) if k == 0 or rows[k] != rows[k - 1]]  # an angle wrap keeps the chart
     for k, last in zip(first, first[1:] + [len(rows)]):
@@ -306,7 +321,7 @@ def animation(
     times: ArrayLike | None = None,
     *,
     frames: int = 150,
-    fps: float = 25.0,
+    fps: int = 25,
     sphere: bool | None = None,
     fig: Figure | None = None,
 ) -> FuncAnimation:
@@ -338,10 +353,8 @@ def animation(
     from matplotlib.animation import FuncAnimation
     from matplotlib.figure import Figure
 
-    if isinstance(frames, bool) or not isinstance(frames, (int, np.integer)) or frames < 2:
-        raise ValueError(f"frames must be an integer >= 2, got {frames!r}")
-    fps = check_real("fps", fps, positive=True)
-    ts = _times(motion, times, int(frames))
+    ts = _times(motion, times, _integer("frames", frames, 2))
+    fps = _integer("fps", fps, 1)
     sphere = motion.chain.n >= 4 if sphere is None else sphere
     L = motion.chain.L
     p = _full_chain(motion(ts)[0], L)
@@ -408,12 +421,12 @@ def animate(motion: ChainMotion, path: str | Path, *, dpi: float = 80.0, **kwarg
     """
     dpi = check_real("dpi", dpi, positive=True)
     path = Path(path)
-    writer = animation_writer(path, kwargs.get("fps", 25.0))
+    writer = animation_writer(path, kwargs.get("fps", 25))
     animation(motion, **kwargs).save(path, writer=writer, dpi=dpi)
     return path
 
 
-def animation_writer(path: str | Path, fps: float = 25.0) -> Any:
+def animation_writer(path: str | Path, fps: int = 25) -> Any:
     """The matplotlib writer for ``path``'s suffix: ``PillowWriter`` for ``.gif``, ``FFMpegWriter`` for ``.mp4``.
 
     Raises
@@ -425,7 +438,7 @@ def animation_writer(path: str | Path, fps: float = 25.0) -> Any:
     """
     from matplotlib import animation as mpl_animation
 
-    fps = check_real("fps", fps, positive=True)
+    fps = _integer("fps", fps, 1)
     suffix = Path(path).suffix.lower()
     if suffix == ".gif":
         return mpl_animation.PillowWriter(fps=fps)

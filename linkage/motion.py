@@ -54,7 +54,7 @@ class ChainMotion:
     @cached_property
     def _recorded(self) -> tuple[NDArray, NDArray, NDArray]:
         sol = self.solution
-        if sol.t_eval is not None:
+        if sol.t_eval is not None and sol.points is not None and sol.velocities is not None:
             return sol.t_eval, sol.points.astype(float), sol.velocities.astype(float)
         t = np.array([float(x) for x in sol.energy_times])
         p, v = sol(t)
@@ -108,7 +108,10 @@ class ChainMotion:
     @property
     def chart_ids(self) -> list:
         """Readable ids of the charts used, in order (a chart kept across an angle wrap counts once)."""
-        ids = [self.solution.metric.atlas.ids[s.chart] for s in self.solution.segments if s.chart is not None]
+        metric = self.solution.metric
+        if metric is None:  # a method given no atlas integrates in no chart
+            return []
+        ids = [metric.atlas.ids[s.chart] for s in self.solution.segments if s.chart is not None]
         return [c for k, c in enumerate(ids) if k == 0 or c != ids[k - 1]]
 
 

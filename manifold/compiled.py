@@ -61,7 +61,7 @@ class CompiledFamily(ArtefactStore):
         """The symbolic pieces with constants exact in ``fp_type``."""
         return self._get(("pieces", fp_type), lambda: SymbolicPieces(self.family, fp_type))
 
-    def _cfunc(self, key: Hashable, fp_type: Any, outputs: Callable[[SymbolicPieces], list], inputs: str) -> Any:
+    def _cfunc(self, key: tuple, fp_type: Any, outputs: Callable[[SymbolicPieces], list], inputs: str) -> Any:
         def build() -> Any:
             P = self.pieces(fp_type)
             args = {"a": P.a, "ac": P.a + P.c}[inputs]

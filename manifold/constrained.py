@@ -43,7 +43,7 @@ from collections.abc import Hashable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
+from typing import Any, TypeAlias
 
 import heyoka as hy
 import mpmath
@@ -61,7 +61,7 @@ from .validation import check_bool, check_real, real_array
 
 __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedSystem", "compiled_constrained", "solve_constrained"]
 
-Expr = hy.expression
+Expr: TypeAlias = hy.expression
 #: How drift off the constraints is held back (see the module docstring).
 STABILISATIONS = ("baumgarte", "projection", "none")
 #: Largest ambient dimension integrated with unrolled (non-compact) code by default; see ``solve_constrained``.
@@ -233,11 +233,11 @@ class ConstrainedPieces:
         Kinv, self.K = layout.matrices(N)
         m = len(self.c)
         # W = K^{-1} G^T (N x m) and M = G W (m x m), keeping structural zeros
-        self.W = [[_sum_or_none([Kinv[i][j] * self.G[k][j] for j in range(N)
-                                 if Kinv[i][j] is not None and self.G[k][j] is not None]) for k in range(m)]
+        self.W = [[_sum_or_none([kij * gkj for kij, gkj in zip(Kinv[i], self.G[k])
+                                 if kij is not None and gkj is not None]) for k in range(m)]
                   for i in range(N)]
-        self.M = [[_sum_or_none([self.G[k][i] * self.W[i][l] for i in range(N)
-                                 if self.G[k][i] is not None and self.W[i][l] is not None]) if l <= k else None
+        self.M = [[_sum_or_none([gki * wil for gki, wil in zip(self.G[k], [row[l] for row in self.W])
+                                 if gki is not None and wil is not None]) if l <= k else None
                    for l in range(m)] for k in range(m)]
 
     def correction(self, r: list[Expr]) -> list[Expr]:

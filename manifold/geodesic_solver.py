@@ -268,11 +268,13 @@ def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_
 
 def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t: Any, q_out: float) -> tuple:
     """Move the state ``(a, c)`` of chart ``i`` to the best chart; log the switch."""
+    assert sol.metric is not None  # the chart solver always makes its solution with the metric
     atlas, num = sol.metric.atlas, sol.chart_numerics
     p, v, _ = num[i].point_velocity_energy(a[:, None], c[:, None])
     p, v = p[0], v[0]
     q_from = float(atlas.charts[i].quality(a.astype(float)))
     j, a_j = atlas.best_chart(p.astype(float))
+    j = int(j)  # one point: one index
     a_j = num[j].polish(as_fp(a_j, sol.fp_type), p)
     q_to = float(atlas.charts[j].quality(a_j.astype(float)))
     if q_to <= q_out:

@@ -271,7 +271,7 @@ class GeodesicSolution:
         if upto <= done or adv.dense is None:
             return done
         p, v = point_velocity(adv.dense(grid[done:upto]))
-        if self.points is None:
+        if self.points is None or self.velocities is None:  # the first grid times: allocate both
             self.points = np.empty((len(grid), p.shape[1]), dtype=p.dtype)
             self.velocities = np.empty_like(self.points)
         self.points[done:upto], self.velocities[done:upto] = p, v
@@ -279,6 +279,8 @@ class GeodesicSolution:
 
     def end_state(self) -> tuple[NDArray, NDArray]:
         """Point and embedded velocity where the solve stopped (available also with ``dense=False``)."""
+        if self.final_state is None:
+            raise ValueError("the solve has not finished: no end state yet")
         i, a, c = self.final_state
         if i is None:
             return a, c

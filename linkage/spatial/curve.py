@@ -273,7 +273,7 @@ class ConfigurationCurve:
         if place.t0 != INF and (factor is None or factor.degree() > EXACT_ROOT_DEGREE):
             return None
         t0 = None
-        if place.t0 != INF:
+        if place.t0 != INF and factor is not None:  # a finite place has its factor (checked above)
             t0 = min(sympy.roots(factor.as_expr(), T), key=lambda r: abs(complex(sympy.N(r, 30)) - place.t0))
         gens = [sympy.I] + ([] if t0 is None or _gaussian(t0) else [t0])
         root = None
