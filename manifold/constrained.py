@@ -36,6 +36,7 @@ A system provides its constraints (and, optionally, hand-written ``G`` and
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from abc import ABC, abstractmethod
@@ -43,7 +44,7 @@ from collections.abc import Hashable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
+from typing import Any, TypeAlias
 
 import heyoka as hy
 import mpmath
@@ -54,15 +55,18 @@ from .artefacts import ArtefactStore
 from .expression_linalg import ldl_solve
 from .metric import InducedMetric
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
+from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import MAX_TOLERANCE, taylor_advance
 from .validation import check_bool, check_real, real_array
 
 __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedSystem", "compiled_constrained", "solve_constrained"]
 
-Expr = hy.expression
+Expr: TypeAlias = hy.expression
 #: How drift off the constraints is held back (see the module docstring).
 STABILISATIONS = ("baumgarte", "projection", "none")
+#: Largest ambient dimension integrated with unrolled (non-compact) code by default; see ``solve_constrained``.
+UNROLL_MAX_DIM = 8
 #: A start farther than this from ``c = 0`` (``max_k |c_k|``) is refused rather than moved.
 START_CONSTRAINT_TOLERANCE = 1e-9
 
@@ -135,9 +139,15 @@ class ConstrainedSystem(ABC):
 
 
 def _exact_inverse(K: NDArray) -> list[list[Fraction]]:
-    """``K^{-1}`` in exact rationals (Gauss-Jordan on the float64 entries taken exact)."""
-    n = K.shape[0]
-    A = [[Fraction(float(K[i, j])) for j in range(n)] + [Fraction(int(i == j)) for j in range(n)] for i in range(n)]
+    """``K^{-1}`` in exact rationals (Gauss-Jordan on the float64 entries taken exact), cached per ``K``."""
+    return _exact_inverse_of(K.shape[0], tuple(float(k) for k in K.ravel()))
+
+
+@functools.lru_cache(maxsize=256)
+def _exact_inverse_of(n: int, entries: tuple[float, ...]) -> list[list[Fraction]]:
+    # rational arithmetic costs ~1 ms per entry at N = 14: solves reuse the result instead of redoing it
+    A = [[Fraction(entries[i * n + j]) for j in range(n)] + [Fraction(int(i == j)) for j in range(n)]
+         for i in range(n)]
     for col in range(n):
         piv = max(range(col, n), key=lambda r: abs(A[r][col]))
         if A[piv][col] == 0:
@@ -178,6 +188,7 @@ class ConstrainedLayout:
 
     @classmethod
     def of(cls, system: ConstrainedSystem) -> "ConstrainedLayout":
+        """The layout of ``system``: its parameter count and the nonzero patterns of ``K^{-1}`` (exact) and ``K``."""
         K = np.asarray(system.metric_matrix, dtype=float)
         Ki = _exact_inverse(K)
         N = K.shape[0]
@@ -234,11 +245,11 @@ class ConstrainedPieces:
         Kinv, self.K = layout.matrices(N)
         m = len(self.c)
         # W = K^{-1} G^T (N x m) and M = G W (m x m), keeping structural zeros
-        self.W = [[_sum_or_none([Kinv[i][j] * self.G[k][j] for j in range(N)
-                                 if Kinv[i][j] is not None and self.G[k][j] is not None]) for k in range(m)]
+        self.W = [[_sum_or_none([kij * gkj for kij, gkj in zip(Kinv[i], self.G[k])
+                                 if kij is not None and gkj is not None]) for k in range(m)]
                   for i in range(N)]
-        self.M = [[_sum_or_none([self.G[k][i] * self.W[i][l] for i in range(N)
-                                 if self.G[k][i] is not None and self.W[i][l] is not None]) if l <= k else None
+        self.M = [[_sum_or_none([gki * wil for gki, wil in zip(self.G[k], [row[l] for row in self.W])
+                                 if gki is not None and wil is not None]) if l <= k else None
                    for l in range(m)] for k in range(m)]
 
     def correction(self, r: list[Expr]) -> list[Expr]:
@@ -283,7 +294,7 @@ class CompiledConstrained(ArtefactStore):
     """
 
     def __init__(self, system: ConstrainedSystem, layout: ConstrainedLayout) -> None:
-        super().__init__()
+        super().__init__(repr(system))
         self.system, self.layout = system, layout
 
     def __repr__(self) -> str:
@@ -388,6 +399,7 @@ def solve_constrained(
     t_eval: ArrayLike | None = None,
     metric: InducedMetric | None = None,
     throw: bool = True,
+    progress: ProgressArgument = None,
 ) -> GeodesicSolution:
     """Integrate the geodesic of ``system`` from ``(x0, v0)`` with heyoka's Taylor method, in ambient coordinates.
 
@@ -417,12 +429,14 @@ def solve_constrained(
         Time between projections for ``"projection"``, ``> 0``.
     compact_mode
         heyoka's compact mode; ``None`` (default) chooses by measurement
-        (``benchmarks/method_speed.py``): off for float64 and long double,
-        where unrolled code steps 1.8x faster (its cold compile, 5-25 s, is
-        paid once per ``n`` and mass sparsity: heyoka caches it on disk); on
-        for real128 and :class:`~manifold.precision.MultiPrecision`, where
-        software arithmetic dominates the step and unrolled code at their high
-        Taylor orders only costs compile time (gigabytes at 150 bits).
+        (``benchmarks/method_speed.py``, section 5): unrolled code for float64
+        and long double up to ``N = UNROLL_MAX_DIM`` (a chain of 5 rods), where
+        it steps 2-6x faster and its cold compile (tens of seconds, paid once:
+        heyoka caches it on disk) is tolerable; compact beyond (an unrolled
+        n = 8 chain took 104 s to compile for a 2.2x faster step) and for
+        real128 and :class:`~manifold.precision.MultiPrecision`, whose
+        software arithmetic dominates the step (unrolled code at 150 bits
+        exhausted memory).
     dense
         Keep the Taylor coefficients of every step, for ``sol(t)`` at any time.
     t_eval
@@ -434,6 +448,11 @@ def solve_constrained(
     throw
         Raise :class:`~manifold.solution.GeodesicIntegrationError` with the
         partial solution on failure (default), or return it with ``status`` set.
+    progress
+        Report compiles and the time reached, as in
+        :func:`manifold.solve_chart_exp_ode`: ``True`` (a tqdm bar), a
+        callable taking a :class:`~manifold.progress.ProgressUpdate`,
+        ``False``, or ``None`` (only inside a :func:`manifold.progress.reporting` block).
 
     Returns
     -------
@@ -444,6 +463,7 @@ def solve_constrained(
     """
     wall0 = time.perf_counter()
     fp_type = resolve_fp_type(fp_type)
+    report = as_callback(progress)
     t_final = check_real("t_final", t_final, nonzero=True)
     if tol is not None:
         tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
@@ -452,7 +472,8 @@ def solve_constrained(
     rate = check_real("rate", rate, positive=True)
     interval = check_real("projection_interval", projection_interval, positive=True)
     if compact_mode is None:
-        compact_mode = not (is_double(fp_type) or fp_type is np.longdouble)
+        hardware = is_double(fp_type) or fp_type is np.longdouble
+        compact_mode = not (hardware and system.ambient_dim <= UNROLL_MAX_DIM)
     compact_mode, dense, throw = (check_bool("compact_mode", compact_mode), check_bool("dense", dense),
                                   check_bool("throw", throw))
     N = system.ambient_dim
@@ -471,7 +492,8 @@ def solve_constrained(
 
     comp = compiled_constrained(system)
     t_compile = time.perf_counter()
-    geo = _Geometry(system, fp_type)
+    with reporting(report):  # compiles the geometry function
+        geo = _Geometry(system, fp_type)
     c0 = np.max(np.abs(geo(x0[None, :].astype(float), v0[None, :])[0].astype(float)))
     if not c0 <= START_CONSTRAINT_TOLERANCE:
         raise ValueError(f"x0 is not on the constraint manifold: max_k |c_k(x0)| = {c0:.3g} exceeds "
@@ -493,7 +515,8 @@ def solve_constrained(
     ends = [t_final] if stabilisation != "projection" else _chunk_ends(t_final, interval)
     status, message, n_grid, project_seconds = SolveStatus.SUCCESS, "reached t_final", 0, 0.0
     t = fp_type(0.0)
-    with comp.integrator(fp_type, tol, stabilisation == "baumgarte", compact_mode) as ta:
+    with solve_progress(report, sol) as reports, comp.integrator(fp_type, tol, stabilisation == "baumgarte",
+                                                                      compact_mode) as ta:
         compile_seconds = time.perf_counter() - t_compile
         pars = comp.layout.pack(system, alpha, fp_type)
         for end in ends:
@@ -507,6 +530,8 @@ def solve_constrained(
             if grid is not None:
                 n_grid = sol.record_grid(grid, n_grid, adv, sign, lambda s: (s[:, :N], s[:, N:]))
             t, x, v = adv.t, adv.y[:N], adv.y[N:]
+            if reports is not None:
+                reports.segment(t, "ambient coordinates")
             violation = sol.energy_violation(recorded, eps, "ambient coordinates")
             drift = float(np.max(np.abs(c.astype(float)))) if c.size else 0.0
             bound = 1e3 * np.sqrt(sol.n_steps + 1) * eps
@@ -528,6 +553,8 @@ def solve_constrained(
     sol.final_state = (None, x, v)
     sol.status, sol.message = status, message
     sol.stats = SolverStats(sol.n_steps, 0, 0, compile_seconds, project_seconds, time.perf_counter() - wall0)
+    if reports is not None:
+        reports.done(t, message)
     if status is not SolveStatus.SUCCESS and throw:
         raise GeodesicIntegrationError(message, sol)
     return sol
