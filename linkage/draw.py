@@ -8,6 +8,11 @@ coordinates of :func:`sphere_coordinates`), the energy error and the chart
 timeline against time (:func:`draw_energy_error`, :func:`draw_chart_timeline`),
 and the moving chain (:func:`animation`, written to a file by :func:`animate`).
 
+A chain without suspension charts (rods of other lengths, or unit rods outside
+``n - 2 < L < n``: :attr:`~linkage.Chain.has_atlas` false) has no chart and no
+configuration sphere: its motions are drawn as the chain, the energy error and
+a timeline in hinge space, and the sphere pictures refuse it by name.
+
 Every ``draw_*`` function draws on an ``Axes`` the caller made (so it works in
 a plain ``matplotlib.figure.Figure`` as well as with ``pyplot``) and returns it.
 matplotlib is imported inside the functions that need it, so that
@@ -128,14 +133,33 @@ def _integer(name: str, value: object, minimum: int) -> int:
     return int(value)
 
 
+def _has_charts(motion: ChainMotion) -> bool:
+    """Whether the motion can be read in charts: solved in an atlas, or its chain has one."""
+    return motion.solution.metric is not None or motion.chain.has_atlas
+
+
 def _atlas_ids(motion: ChainMotion) -> list:
-    """The chart ids of the motion's atlas (the chain's own atlas for a method that was given none)."""
+    """The chart ids of the motion's atlas (the chain's own atlas for a method that was given none; none without)."""
     metric = motion.solution.metric
+    if metric is None and not motion.chain.has_atlas:
+        return []
     return list((motion.chain.atlas() if metric is None else metric.atlas).ids)
 
 
 def _chart_label(motion: ChainMotion, chart: int) -> str:
     return f"chart {_atlas_ids(motion)[chart]}"
+
+
+def _active_charts(motion: ChainMotion, times: NDArray) -> NDArray:
+    """The chart active (or best, for a hinge-space method) at ``times``; ``-1`` where the chain has no charts."""
+    if not _has_charts(motion):
+        return np.full(len(times), -1)
+    return np.asarray(motion.solution.parameters(times)[0])
+
+
+def _title(motion: ChainMotion, t: str, chart: int) -> str:
+    """``t = <t>``, and the chart if there is one (``chart >= 0``)."""
+    return f"t = {t}" + ("" if chart < 0 else f", {_chart_label(motion, chart)}")
 
 
 def sphere_coordinates(motion: ChainMotion, times: ArrayLike) -> NDArray:
@@ -157,10 +181,14 @@ def sphere_coordinates(motion: ChainMotion, times: ArrayLike) -> NDArray:
     Parameters
     ----------
     motion
-        A solved motion with dense output.
+        A solved motion with dense output, of a chain with an atlas (else ``ValueError``).
     times
         Times within the solved span.
     """
+    if not motion.chain.has_atlas:
+        raise ValueError(
+            f"sphere coordinates are read in chart 0 of the suspension atlas, and {motion.chain!r} has none "
+            f"(unit rods with n - 2 < L < n only): {motion.chain.topology().summary()}")
     chart0 = motion.chain.atlas().charts[0]
     hinges = motion(real_array("times", times))[0]
     return chart0.sphere_point(chart0.get_parameters(motion.chain.to_point(hinges)))
@@ -183,11 +211,11 @@ def draw_chain_at(ax: Axes, motion: ChainMotion, t: float, color: Any = "C0", la
     Returns
     -------
     matplotlib.axes.Axes
-        ``ax``, titled with ``t`` and the chart active there.
+        ``ax``, titled with ``t`` and the chart active there (if the chain has charts).
     """
     t = check_real("t", t)
     draw_configuration(ax, motion(t)[0], motion.chain.L, color=color, label=label)
-    ax.set_title(f"t = {t:.4g}, {_chart_label(motion, int(motion.solution.parameters(t)[0]))}")
+    ax.set_title(_title(motion, f"{t:.4g}", int(_active_charts(motion, np.array([t]))[0])))
     return ax
 
 
@@ -342,7 +370,8 @@ def animation(
     fps
         Frames per second (the delay between frames when shown).
     sphere
-        Add the configuration-sphere panel (default: when ``n >= 4``).
+        Add the configuration-sphere panel (default: when ``n >= 4`` and the
+        chain has an atlas; without one, frames are coloured ``C0``).
     fig
         The ``Figure`` to draw on (default: a new one, outside ``pyplot``).
 
@@ -355,10 +384,10 @@ def animation(
 
     ts = _times(motion, times, _integer("frames", frames, 2))
     fps = _integer("fps", fps, 1)
-    sphere = motion.chain.n >= 4 if sphere is None else sphere
+    sphere = motion.chain.n >= 4 and motion.chain.has_atlas if sphere is None else sphere
     L = motion.chain.L
     p = _full_chain(motion(ts)[0], L)
-    charts = np.asarray(motion.solution.parameters(ts)[0])
+    charts = _active_charts(motion, ts)
     if fig is None:
         fig = Figure(figsize=(10.0 if sphere else 5.5, 4.8))
     ax = fig.add_subplot(1, 2 if sphere else 1, 1)
@@ -378,8 +407,8 @@ def animation(
 
     def update(k: int) -> list[Any]:
         rods.set_data(p[k].real, p[k].imag)
-        rods.set_color(f"C{charts[k]}")
-        ax.set_title(f"t = {ts[k]:7.2f}, {_chart_label(motion, int(charts[k]))}")
+        rods.set_color(f"C{max(int(charts[k]), 0)}")
+        ax.set_title(_title(motion, f"{ts[k]:7.2f}", int(charts[k])))
         if sphere:
             dot.set_data_3d(*s[k : k + 1].T)
         return artists

@@ -25,6 +25,7 @@ from linkage import (
     draw_sphere_path,
 )
 from linkage.demo import pole_start
+from linkage.constraints import HingeConstraints
 from linkage.draw import SWITCH_GID, sphere_coordinates
 from linkage.motion import free_motion
 
@@ -164,3 +165,26 @@ def test_the_sphere_path_needs_four_rods_and_a_3d_axes(motion):
     circle = free_motion(chain3, *pole_start(chain3), 1.0)
     with pytest.raises(ValueError, match="needs n >= 4 .* got n = 3"):
         draw_sphere_path(Figure().add_subplot(projection="3d"), circle)
+
+
+def test_a_chain_without_charts_is_drawn_without_them(tmp_path):
+    """Rods of other lengths: no chart, no sphere; the chain, the energy and a hinge-space timeline still draw."""
+    chain = Chain((1.0, 2.0, 1.5, 2.5, 1.2), 3.0)
+    h0 = chain.from_diagonals([2.0, 2.5, 3.0], [1, -1, 1, 1])
+    x0 = chain.to_point(h0)
+    v0 = chain.from_point(HingeConstraints(chain).project_velocity(x0, np.linspace(-1, 1, x0.size)))
+    m = free_motion(chain, h0, v0, 2.0, method="hinges", compact_mode=True)
+    ax = draw_chain_at(Figure().add_subplot(), m, 1.0)
+    assert ax.get_title() == "t = 1"
+    xy = ax.lines[0].get_xydata()
+    np.testing.assert_allclose(np.abs(np.diff(xy[:, 0] + 1j * xy[:, 1])), chain.lengths, rtol=1e-12)
+    ax = draw_chart_timeline(Figure().add_subplot(), m)
+    assert [t.get_text() for t in ax.get_yticklabels()] == ["hinge space"]
+    draw_energy_error(Figure().add_subplot(), m)
+    fig = Figure()
+    animation(m, [0.0, 1.0, 2.0], fig=fig).save(tmp_path / "m.gif", writer=mpl_animation.PillowWriter(fps=5), dpi=20)
+    assert len(fig.axes) == 1 and fig.axes[0].get_title() == "t =    2.00"  # no sphere panel, no chart
+    with pytest.raises(ValueError, match=r"sphere coordinates .* has none .*closed orientable 3-manifold"):
+        sphere_coordinates(m, [0.0])
+    with pytest.raises(ValueError, match="has none"):
+        draw_sphere_path(Figure().add_subplot(projection="3d"), m)
