@@ -154,6 +154,11 @@ class SuspensionChart(SymbolicChart):
             return super().raw_jacobian(a)
         return np.zeros((*self.check_parameters(a).shape[:-1], self.ambient_dim, 0))
 
+    def raw_hessian(self, a: ArrayLike) -> NDArray:
+        if self.n > 2:
+            return super().raw_hessian(a)
+        return np.zeros((*self.check_parameters(a).shape[:-1], self.ambient_dim, 0, 0))
+
     def quality(self, a: ArrayLike) -> NDArray:
         if self.n > 2:
             return super().quality(a)
@@ -209,6 +214,9 @@ class SuspensionAtlas(Atlas):
     quality_floor
         The measured worst best-chart quality, rounded down
         (:data:`QUALITY_FLOOR`; ``None`` where not measured).
+    parameter_box
+        ``(lower, upper)`` of the chart parameters: latitudes in ``[-pi/2, pi/2]``,
+        ``t`` over one period ``[-pi, pi]``.
     """
 
     charts: Sequence[SuspensionChart]  # narrower than Atlas.charts: sphere_point, hinges, rod_angles are there
@@ -224,3 +232,6 @@ class SuspensionAtlas(Atlas):
             ids = [f"shift{s}" for s in range(n)]
         super().__init__(charts, ids, switch_threshold, QUALITY_FLOOR.get(n))
         self.n, self.L = n, L
+        # Every chart maps this box onto the whole configuration space, one-to-one off its singular set (empty for n = 2).
+        half = np.full(max(n - 3, 0), np.pi / 2)
+        self.parameter_box = (np.append(-half, -np.pi), np.append(half, np.pi)) if n > 2 else (np.zeros(0), np.zeros(0))
