@@ -89,10 +89,11 @@ class InducedMetric:
         return np.where(regular, np.abs(np.prod(np.diagonal(R, axis1=-2, axis2=-1), axis=-1)), 0.0)
 
     def integrate(self, f: Callable[[NDArray], NDArray], i: int, box: tuple[ArrayLike, ArrayLike],
-                  nodes: Sequence[int], periodic: Sequence[int] = ()) -> float:
+                  nodes: Sequence[int], periodic: Sequence[int] = ()) -> float | NDArray:
         """``int f(p) dvol`` over the image of the box ``lower <= a <= upper`` of chart ``i``: a tensor quadrature rule.
 
-        ``f`` maps points ``(B, N)`` to values ``(B,)``; it is called once on all
+        ``f`` maps points ``(B, N)`` to values ``(B,)`` (a float is returned) or
+        ``(B, ...)`` (an array of the trailing shape); it is called once on all
         nodes.  Parameter ``j`` gets ``nodes[j]`` Gauss-Legendre nodes, or, if
         ``j`` is in ``periodic`` (its box spanning one period), the trapezoidal
         rule, spectrally accurate for a smooth periodic integrand.  The result
@@ -119,7 +120,8 @@ class InducedMetric:
         a = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, k)
         w = np.prod(np.stack(np.meshgrid(*weights, indexing="ij"), axis=-1).reshape(-1, k), axis=-1)
         values = np.asarray(f(self.atlas.get_point(i, a)), dtype=float)
-        return float(np.sum(w * values * self.volume_density(i, a)))
+        out = np.tensordot(w * self.volume_density(i, a), values, axes=(0, 0))
+        return float(out) if out.ndim == 0 else out
 
     # -- curvature --------------------------------------------------------------------
     def _frame_form(self, i: int, a: NDArray) -> tuple[NDArray, NDArray, NDArray]:
