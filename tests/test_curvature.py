@@ -210,3 +210,7 @@ def test_curvature_refuses_bad_input():
     five = Chain(5, 3.5).metric()
     with pytest.raises(ValueError, match="gaussian_curvature needs a manifold of dimension 2, got dimension 3"):
         five.gaussian_curvature(five.atlas.get_point(0, np.array([0.1, 0.2, 0.3])))
+    with pytest.raises(ValueError, match=r"nodes\[1\] must be a positive integer, got 0"):
+        five.integrate(lambda p: np.ones(len(p)), 0, five.atlas.parameter_box, (4, 0, 4))
+    with pytest.raises(ValueError, match="box and nodes need dim = 3 entries, got 3, 3 and 2"):
+        five.integrate(lambda p: np.ones(len(p)), 0, five.atlas.parameter_box, (4, 4))
