@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 
 from charts import SuspensionChart
 from linkage import Chain
+from linkage.sampling import sample_configurations
 from manifold import Atlas, InducedMetric, compiled
 
 from .conftest import base_lengths, chart_parameters, folded_conditioning
@@ -179,6 +180,18 @@ def test_five_rods_riemann_tensor_two_routes_and_two_charts(L, a, seed):
     pairs = [(r, s) for r in range(3) for s in range(3) if r != s]
     S = sum(metric.sectional_curvature(p, frame[:, r], frame[:, s]) for r, s in pairs)
     assert abs(S - metric.scalar_curvature(p)) <= 1e-9 * folded_conditioning(5, L) * max(1.0, abs(S))
+
+
+def test_curvature_is_invariant_under_the_reflection_of_the_plane():
+    """``p -> conj(p)`` is an isometry of every chain (``K = A (x) I_2`` commutes with it) and maps charts to
+    other parameters: curvature at mirror configurations agrees, for n = 4 (Gaussian) and n = 5 (scalar)."""
+    rng = np.random.default_rng(10)
+    for chain, curvature in ((Chain(4, 2.3, hinge_masses=[1.0, 2.0, 3.0]), "gaussian_curvature"),
+                             (Chain(5, 3.4, rod_densities=[0.5, 0.0, 2.0, 1.0, 0.3]), "scalar_curvature")):
+        h = sample_configurations(chain, 40, rng)
+        f = getattr(chain.metric(), curvature)
+        K, K_mirror = f(chain.to_point(h)), f(chain.to_point(np.conj(h)))
+        assert np.allclose(K, K_mirror, rtol=1e-12, atol=1e-12)
 
 
 # -- Gauss-Bonnet -----------------------------------------------------------------------------------------
