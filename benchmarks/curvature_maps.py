@@ -128,7 +128,7 @@ def ergodicity(T: float, runs: int, L: float = 2.6) -> list[dict]:
     for r in range(runs):
         t0 = time.perf_counter()
         ts = np.linspace(0, T, int(20 * T) + 1)
-        motion = free_motion(chain, hinges0[r], velocities0[r], T, t_eval=ts)
+        motion = free_motion(chain, hinges0[r], velocities0[r], T, method="charts", t_eval=ts)
         seconds = time.perf_counter() - t0
         a = chart.get_parameters(chain.to_point(motion.hinges))
         i = np.clip(np.searchsorted(edges_phi, a[:, 0]) - 1, 0, 5)

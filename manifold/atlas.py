@@ -106,16 +106,16 @@ class Atlas:
         decided point by point.
         """
         try:
-            params = [c.get_parameters(p) for c in self.charts]
-            q = np.stack([c.quality(a) for c, a in zip(self.charts, params)], axis=-1)
-            return np.stack(params, axis=1), q
+            per_chart = [c.get_parameters(p) for c in self.charts]
+            q = np.stack([c.quality(a) for c, a in zip(self.charts, per_chart)], axis=-1)
+            return np.stack(per_chart, axis=1), q
         except ChartDomainError:
             pass
         out_a = np.full((p.shape[0], len(self.charts), self.dim), np.nan)
         out_q = np.empty((p.shape[0], len(self.charts)))
         for b, x in enumerate(p):
-            params, out_q[b] = self._all_parameters(x)
-            for i, a in enumerate(params):
+            in_charts, out_q[b] = self._all_parameters(x)
+            for i, a in enumerate(in_charts):
                 if a is not None:
                     out_a[b, i] = a
         return out_a, out_q
@@ -144,9 +144,9 @@ class Atlas:
         """
         p = self._point(p)
         if p.ndim > 1:
-            params, q = self._batch_parameters(p.reshape(-1, p.shape[-1]))
-            idx = np.argmax(q, axis=-1)
-            a = params[np.arange(idx.size), idx]
+            all_a, all_q = self._batch_parameters(p.reshape(-1, p.shape[-1]))
+            idx = np.argmax(all_q, axis=-1)
+            a = all_a[np.arange(idx.size), idx]
             return idx.reshape(p.shape[:-1]), a.reshape(*p.shape[:-1], self.dim)
         params, q = self._all_parameters(p)
         i = int(np.argmax(q))

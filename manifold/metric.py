@@ -82,7 +82,6 @@ class InducedMetric:
         Computed as ``|det R|`` of ``C J = Q R`` (:func:`manifold.curvature.tangent_frame`)
         rather than from ``det(J^T K J)``, which squares the condition number.
         """
-        a = self.atlas.charts[i].check_parameters(a)
         J = self.atlas.charts[i].raw_jacobian(a)
         regular = np.all(np.isfinite(J), axis=(-2, -1))
         _, R = tangent_frame(np.where(regular[..., None, None], J, 0.0), self.K_root)
@@ -139,7 +138,7 @@ class InducedMetric:
         orthonormal frame (:func:`manifold.curvature.frame_riemann`), carried to
         coordinates by ``d/da_a = sum_i R_ia e_i``.
         """
-        II, _, R = self._frame_form(i, self.atlas.charts[i].check_parameters(a))
+        II, _, R = self._frame_form(i, real_array("a", a))
         return np.einsum("...ia,...jb,...kc,...ld,...ijkl->...abcd", R, R, R, R, frame_riemann(II))
 
     def _best_frames(self, p: ArrayLike) -> tuple[tuple[int, ...], NDArray, NDArray]:
