@@ -58,7 +58,8 @@ from .solution import GeodesicIntegrationError, GeodesicSolution, Segment, Solve
 from .steppers import MAX_TOLERANCE, taylor_advance
 from .validation import check_bool, check_real, real_array
 
-__all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedSystem", "compiled_constrained", "solve_constrained"]
+__all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "ConstrainedLayout", "ConstrainedSystem",
+           "compiled_constrained", "constraint_bound", "solve_constrained", "verdict"]
 
 Expr = hy.expression
 #: How drift off the constraints is held back (see the module docstring).
@@ -336,8 +337,20 @@ def compiled_constrained(system: ConstrainedSystem) -> CompiledConstrained:
         return _REGISTRY[key]
 
 
-class _Geometry:
-    """The geometry cfunc for one system in the working precision, with the projections built on it."""
+class ConstrainedGeometry:
+    """The geometry cfunc of one system in the working precision, with the projections and start checks built on it.
+
+    Shared by :func:`solve_constrained` and the ensemble solver
+    (:mod:`manifold.constrained_batch`), so that both start every
+    trajectory from the same state.
+
+    Parameters
+    ----------
+    system
+        The :class:`ConstrainedSystem`.
+    fp_type
+        The working precision.
+    """
 
     def __init__(self, system: ConstrainedSystem, fp_type: Any) -> None:
         comp = compiled_constrained(system)
@@ -345,6 +358,7 @@ class _Geometry:
         self.pars = comp.layout.pack(system, 0.0, fp_type)
         self.N, self.m = system.ambient_dim, system.n_constraints
         self.eps = unit_roundoff(fp_type)
+        self.trace_K = float(np.trace(np.asarray(system.metric_matrix, dtype=float)))
 
     def __call__(self, x: NDArray, v: NDArray, r: NDArray | None = None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
         """Batched ``(c, G v, correction(r), E)`` for ``x, v`` of shape ``(B, N)``."""
@@ -367,6 +381,69 @@ class _Geometry:
         _, Gv, _, _ = self(x, v)
         v = v - self(x, v, Gv)[2]
         return x[0], v[0]
+
+    def start(self, x0: NDArray, v0: NDArray, t_final: float, rate: float) -> tuple[NDArray, NDArray, Any, float]:
+        """Check a float64 start and complete it to the working precision.
+
+        Returns ``(x, v, E0, alpha)``: ``x0`` projected onto ``c = 0`` and
+        ``v0`` K-orthogonally onto ``ker G`` (:meth:`project`), the kinetic
+        energy there, and the Baumgarte rate ``alpha = sign(t_final) rate
+        sqrt(2 E0 / tr K)``.  Raises ``ValueError`` if ``max_k |c_k(x0)|``
+        exceeds :data:`START_CONSTRAINT_TOLERANCE` or the energy is not finite.
+        """
+        c0 = np.max(np.abs(self(x0[None, :].astype(float), v0[None, :])[0].astype(float)))
+        if not c0 <= START_CONSTRAINT_TOLERANCE:
+            raise ValueError(f"x0 is not on the constraint manifold: max_k |c_k(x0)| = {c0:.3g} exceeds "
+                             f"{START_CONSTRAINT_TOLERANCE:g}")
+        x, v = self.project(as_fp(x0, self.fp), as_fp(v0, self.fp))
+        E0 = self(x[None, :], v[None, :])[3][0]
+        if not np.isfinite(float(E0)):
+            raise ValueError(f"v0 gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0)):.3g})")
+        # the damping term 2 alpha G v must damp in the direction of integration: backward, it flips sign
+        alpha = float(np.sign(t_final)) * rate * float(np.sqrt(2 * float(E0) / self.trace_K))
+        return x, v, E0, alpha
+
+
+def constraint_bound(n_steps: int, eps: float) -> float:
+    """The bound on ``max_k |c_k|`` after ``n_steps`` steps at relative tolerance ``eps``: ``1000 sqrt(n_steps + 1) eps``."""
+    return float(1e3 * np.sqrt(n_steps + 1) * eps)
+
+
+def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float, t: float,
+            failure: str | None) -> tuple[SolveStatus, str]:
+    """How a stretch of a constrained solve ended: the checks in the order every constrained solver applies them.
+
+    Parameters
+    ----------
+    energy_violation
+        The energy check's sentence (:func:`manifold.solution.energy_violation`), ``None`` if it passed.
+    drift
+        ``max_k |c_k|`` over the states checked (NaN fails).
+    n_steps
+        Steps taken so far.
+    eps
+        The relative tolerance.
+    t
+        Time reached.
+    failure
+        Why the integrator stopped early (``None`` if it did not).
+
+    Returns
+    -------
+    tuple
+        ``(status, message)``: :attr:`SolveStatus.SUCCESS` and ``"reached t_final"``,
+        else the energy failure, the constraint failure or the stepper failure (in that order).
+    """
+    if energy_violation is not None:
+        return SolveStatus.ENERGY_CHECK_FAILED, energy_violation
+    bound = constraint_bound(n_steps, eps)
+    if not drift <= bound:
+        return SolveStatus.CONSTRAINT_CHECK_FAILED, (
+            f"constraint check failed by t = {t:.6g}: max_k |c_k| = {drift:.3g} exceeds "
+            f"1000 sqrt(steps + 1) tol = {bound:.3g}")
+    if failure is not None:
+        return SolveStatus.STEPPER_FAILED, f"integration failed at t = {t}: {failure}"
+    return SolveStatus.SUCCESS, "reached t_final"
 
 
 def solve_constrained(
@@ -471,18 +548,8 @@ def solve_constrained(
 
     comp = compiled_constrained(system)
     t_compile = time.perf_counter()
-    geo = _Geometry(system, fp_type)
-    c0 = np.max(np.abs(geo(x0[None, :].astype(float), v0[None, :])[0].astype(float)))
-    if not c0 <= START_CONSTRAINT_TOLERANCE:
-        raise ValueError(f"x0 is not on the constraint manifold: max_k |c_k(x0)| = {c0:.3g} exceeds "
-                         f"{START_CONSTRAINT_TOLERANCE:g}")
-    x, v = geo.project(as_fp(x0, fp_type), as_fp(v0, fp_type))
-    E0 = geo(x[None, :], v[None, :])[3][0]
-    if not np.isfinite(float(E0)):
-        raise ValueError(f"v0 gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0)):.3g})")
-    K = np.asarray(system.metric_matrix, dtype=float)
-    # the damping term 2 alpha G v must damp in the direction of integration: backward, it flips sign
-    alpha = np.sign(t_final) * rate * np.sqrt(2 * float(E0) / np.trace(K))
+    geo = ConstrainedGeometry(system, fp_type)
+    x, v, E0, alpha = geo.start(x0, v0, t_final, rate)
 
     sol = GeodesicSolution(metric, fp_type, f"constrained-taylor ({stabilisation})", (0.0, t_final), {})
     sol.t_eval = grid
@@ -491,7 +558,7 @@ def solve_constrained(
     eps = 2 * unit_roundoff(fp_type) if tol is None else max(tol, 2 * unit_roundoff(fp_type))
     sign = float(np.sign(t_final))
     ends = [t_final] if stabilisation != "projection" else _chunk_ends(t_final, interval)
-    status, message, n_grid, project_seconds = SolveStatus.SUCCESS, "reached t_final", 0, 0.0
+    n_grid, project_seconds = 0, 0.0
     t = fp_type(0.0)
     with comp.integrator(fp_type, tol, stabilisation == "baumgarte", compact_mode) as ta:
         compile_seconds = time.perf_counter() - t_compile
@@ -507,19 +574,10 @@ def solve_constrained(
             if grid is not None:
                 n_grid = sol.record_grid(grid, n_grid, adv, sign, lambda s: (s[:, :N], s[:, N:]))
             t, x, v = adv.t, adv.y[:N], adv.y[N:]
-            violation = sol.energy_violation(recorded, eps, "ambient coordinates")
             drift = float(np.max(np.abs(c.astype(float)))) if c.size else 0.0
-            bound = 1e3 * np.sqrt(sol.n_steps + 1) * eps
-            if violation is None and not drift <= bound:
-                status, message = SolveStatus.CONSTRAINT_CHECK_FAILED, (
-                    f"constraint check failed by t = {float(t):.6g}: max_k |c_k| = {drift:.3g} exceeds "
-                    f"1000 sqrt(steps + 1) tol = {bound:.3g}")
-                break
-            if violation is not None:
-                status, message = SolveStatus.ENERGY_CHECK_FAILED, violation
-                break
-            if adv.failure is not None:
-                status, message = SolveStatus.STEPPER_FAILED, f"integration failed at t = {t}: {adv.failure}"
+            status, message = verdict(sol.energy_violation(recorded, eps, "ambient coordinates"), drift,
+                                      sol.n_steps, eps, float(t), adv.failure)
+            if status is not SolveStatus.SUCCESS:
                 break
             if stabilisation == "projection" and end != ends[-1]:
                 p0 = time.perf_counter()
