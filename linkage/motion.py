@@ -4,7 +4,8 @@
 (``method="charts"``) and :func:`manifold.constrained.solve_constrained`
 (``method="hinges"``);
 :class:`ChainMotion` shows any method's solution in complex hinges instead of
-interleaved real points.
+interleaved real points.  :func:`free_motions` (many starts at once, on every
+core or a Dask cluster; :mod:`linkage.ensemble`) is re-exported here.
 """
 
 from __future__ import annotations
@@ -21,6 +22,9 @@ from manifold.constrained import solve_constrained
 
 from .chain import Chain
 from .constraints import ChainSystem, start_state
+from .ensemble import EnsembleMotion, free_motions
+
+__all__ = ["METHODS", "ChainMotion", "EnsembleMotion", "free_motion", "free_motions"]
 
 
 class ChainMotion:

@@ -56,7 +56,7 @@ from .metric import InducedMetric
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
 from .solution import GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import MAX_TOLERANCE, taylor_advance
-from .validation import check_bool, check_real, real_array
+from .validation import check_bool, check_real, check_time_grid, real_array
 
 __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "ConstrainedLayout", "ConstrainedSystem",
            "compiled_constrained", "constraint_bound", "solve_constrained", "verdict"]
@@ -322,6 +322,19 @@ class CompiledConstrained(ArtefactStore):
         with self._lend(("integrator", fp_type, tol, stabilised, compact_mode), build) as ta:
             yield ta
 
+    @contextmanager
+    def batch_integrator(self, batch_size: int, tol: float | None = None, compact_mode: bool = False) -> Iterator[Any]:
+        """Lend a float64 SIMD batch integrator (``heyoka.taylor_adaptive_batch``) of the Baumgarte-stabilised
+        equations, ``batch_size`` trajectories per step; parameters are columns, one per lane."""
+        def build() -> Any:
+            P = self.pieces(float)
+            kw = {} if tol is None else {"tol": float(tol)}
+            return hy.taylor_adaptive_batch(P.equations(True), np.zeros((2 * len(P.x), batch_size)),
+                                            compact_mode=compact_mode, **kw)
+
+        with self._lend(("batch integrator", batch_size, tol, compact_mode), build) as ta:
+            yield ta
+
 
 _REGISTRY: dict[Hashable, CompiledConstrained] = {}
 _REGISTRY_LOCK = threading.Lock()
@@ -539,12 +552,7 @@ def solve_constrained(
             raise ValueError(f"{name} must have shape ({N},), got {arr.shape}")
     grid = None
     if t_eval is not None:
-        grid = real_array("t_eval", t_eval)
-        lo, hi = sorted((0.0, t_final))
-        ordered = np.all(np.diff(grid) * np.sign(t_final) >= 0)
-        if grid.ndim != 1 or not np.all((grid >= lo) & (grid <= hi)) or not ordered:
-            raise ValueError(f"t_eval must be a 1-d array of times within [0, {t_final:g}] in integration order, "
-                             f"got {t_eval!r}")
+        grid = check_time_grid(t_eval, t_final)
 
     comp = compiled_constrained(system)
     t_compile = time.perf_counter()
