@@ -149,44 +149,47 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
     pars[0] = [s[3] for s in starts]  # alpha, per trajectory (layout: par[0])
     times, position = _with_ends(grid, t_final)
     states = np.full((n, len(times), 2 * dim), np.nan)
+    ends = np.full((n, 2 * dim), np.nan)
     steps = np.zeros(n, dtype=int)
     t_reached = np.zeros(n)
     failure: list[str | None] = [None] * n
     with comp.batch_integrator(batch_size, tol, compact_mode) as ta:
         for i in range(0, n, batch_size):
             lanes = list(range(i, min(i + batch_size, n)))
-            _run_batch(ta, lanes, X, V, pars, times, states, steps, t_reached, failure)
-    eps = 2 * unit_roundoff(float) if tol is None else max(tol, 2 * unit_roundoff(float))
-    c, _, _, E = geo(states[:, 1:, :dim].reshape(-1, dim), states[:, 1:, dim:].reshape(-1, dim))
-    E = E.reshape(n, -1)
+            _run_batch(ta, lanes, X, V, pars, times, states, ends, steps, t_reached, failure)
+    # checked as a single solve checks: the recorded states after the start (grid times reached, then the end)
+    checked = np.concatenate([states[:, 1:], ends[:, None]], axis=1)
+    c, _, _, E = geo(checked[..., :dim].reshape(-1, dim), checked[..., dim:].reshape(-1, dim))
+    deviations = np.abs(E.reshape(n, -1) - E0[:, None]) / E0[:, None]
     drift = np.max(np.abs(c), axis=1).reshape(n, -1)
-    status, messages, errors = [], [], np.zeros(n)
+    eps = 2 * unit_roundoff(float) if tol is None else max(tol, 2 * unit_roundoff(float))
+    status, messages = [], []
     for k in range(n):
-        done = np.all(np.isfinite(states[k, 1:]), axis=1)
-        dev = np.abs(E[k] - E0[k]) / E0[k]
-        errors[k] = np.max(dev) if failure[k] is None else np.nan
-        s, m = verdict(energy_violation(dev[done], times[1:][done], int(steps[k]), eps, "ambient coordinates"),
-                       float(np.max(drift[k][done], initial=0.0)), int(steps[k]), eps, float(t_reached[k]),
-                       failure[k])
+        rows = np.append(np.abs(times[1:]) <= abs(t_reached[k]), True)  # NaN t_reached: only the end
+        s, m = verdict(energy_violation(deviations[k, rows], np.append(times[1:], t_reached[k])[rows],
+                                        int(steps[k]), eps, "ambient coordinates"),
+                       float(np.max(drift[k, rows])), int(steps[k]), eps, float(t_reached[k]), failure[k])
         status.append(s)
         messages.append(m)
-    end = states[:, -1] if failure.count(None) == n else np.array(
-        [states[k, -1] if failure[k] is None else np.full(2 * dim, np.nan) for k in range(n)])
+    errors = np.array([np.max(deviations[k, np.append(np.abs(times[1:]) <= abs(t_reached[k]), True)])
+                       for k in range(n)])
     return EnsembleSolution(
-        METHOD, t_final, grid, end[:, :dim], end[:, dim:], t_reached, steps, errors, status, messages,
+        METHOD, t_final, grid, ends[:, :dim], ends[:, dim:], t_reached, steps, errors, status, messages,
         None if grid is None else states[:, position, :dim],
         None if grid is None else states[:, position, dim:], batch_size=batch_size)
 
 
 def _run_batch(ta: Any, lanes: list[int], X: NDArray, V: NDArray, pars: NDArray, times: NDArray, states: NDArray,
-               steps: NDArray, t_reached: NDArray, failure: list[str | None]) -> None:
+               ends: NDArray, steps: NDArray, t_reached: NDArray, failure: list[str | None]) -> None:
     """Integrate the trajectories ``lanes`` on the batch integrator ``ta``, filling their rows of the outputs.
 
     Unused lanes (a short last batch) carry a copy of a live trajectory, whose
     results are discarded.  A lane that reaches ``t_final`` is done; a lane
     that reports an error (a non-finite state) has failed; any other lane was
     stopped by its neighbours and runs again from the start, without the
-    failed ones (the steps of a lane do not depend on the others).
+    failed ones (the steps of a lane do not depend on the others).  A lane
+    counts as done only at ``t_final``: heyoka reports ``time_limit`` for
+    lanes held at the start by a neighbour that failed in its first step.
     """
     B = ta.batch_size
     live = list(lanes)
@@ -200,8 +203,8 @@ def _run_batch(ta: Any, lanes: list[int], X: NDArray, V: NDArray, pars: NDArray,
         for lane, k in enumerate(live):
             outcome, _, _, steps[k] = ta.propagate_res[lane]
             t_reached[k] = ta.time[lane]
-            states[k] = out[:, :, lane]
-            if outcome == hy.taylor_outcome.time_limit:
+            states[k], ends[k] = out[:, :, lane], ta.state[:, lane]
+            if outcome == hy.taylor_outcome.time_limit and t_reached[k] == times[-1]:
                 continue
             if outcome.name.startswith("err"):
                 failure[k] = str(outcome)
