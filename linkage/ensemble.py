@@ -24,7 +24,7 @@ from manifold.solution import SolveStatus
 from manifold.validation import check_positive_int, check_time_grid
 
 from .chain import Chain
-from .constraints import ChainSystem, start_state
+from .constraints import ChainSystem, start_states
 
 __all__ = ["EnsembleMotion", "free_motions"]
 
@@ -195,17 +195,7 @@ def free_motions(
     if refused:
         raise TypeError(f"free_motions does not take {sorted(refused)}: an ensemble keeps no dense output "
                         "(ask for states with t_eval) and reports a failed trajectory in its status")
-    H0 = chain.as_hinges(hinges0, "configuration")
-    W0 = chain.as_hinges(velocities0, "velocity")
-    if H0.ndim != 2 or W0.shape != H0.shape or H0.shape[0] == 0:
-        raise ValueError(f"hinges0 and velocities0 must both have shape (N, n - 1) = (N, {chain.n - 1}) with N >= 1, "
-                         f"got {H0.shape} and {W0.shape}")
-    X0, V0 = np.empty((len(H0), 2 * (chain.n - 1))), np.empty((len(H0), 2 * (chain.n - 1)))
-    for k in range(len(H0)):
-        try:
-            _, X0[k], V0[k], t_final = start_state(chain, H0[k], W0[k], t_final, tangent_tol, project_velocity)
-        except ValueError as e:
-            raise type(e)(f"start {k} (hinges0[{k}], velocities0[{k}]): {e}") from None
+    _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, tangent_tol, project_velocity)
     grid = None if t_eval is None else check_time_grid(t_eval, t_final)
     batchable = (method == "hinges" and set(kwargs) <= BATCH_OPTIONS
                  and resolve_fp_type(kwargs.get("fp_type", float)) is float
@@ -221,9 +211,9 @@ def free_motions(
     if batch_size not in (None, 1):
         raise ValueError(f"batch_size={batch_size!r}: SIMD batches run the hinge method in float64 with Baumgarte "
                          f"stabilisation only; method={method!r} with {sorted(kwargs)} runs single solves")
-    size = (default_chunk_size(len(H0), backend_workers(backend, client), 1) if chunk_size is None
+    size = (default_chunk_size(len(X0), backend_workers(backend, client), 1) if chunk_size is None
             else check_positive_int("chunk_size", chunk_size))
-    bounds = chunk_bounds(len(H0), size)
+    bounds = chunk_bounds(len(X0), size)
     chunks = [functools.partial(solve_motion_chunk, chain, X0[i:j], V0[i:j], t_final, grid, method, kwargs)
               for i, j in bounds]
     return EnsembleMotion(chain, run_chunks(chunks, [j - i for i, j in bounds], backend=backend, client=client,

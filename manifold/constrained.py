@@ -383,37 +383,54 @@ class ConstrainedGeometry:
         return out[:m].T, out[m : 2 * m].T, out[2 * m : 2 * m + N].T, out[-1]
 
     def project(self, x: NDArray, v: NDArray) -> tuple[NDArray, NDArray]:
-        """Gauss-Newton ``x -= K^{-1} G^T M^{-1} c(x)`` to ``c = 0``, then ``v -= K^{-1} G^T M^{-1} G v``."""
-        x, v = x[None, :], v[None, :]
+        """Rows ``(B, N)``: Gauss-Newton ``x -= K^{-1} G^T M^{-1} c(x)`` until ``max_k |c_k| <= 4 eps``, row by
+        row, then ``v -= K^{-1} G^T M^{-1} G v``.
+
+        A row that has converged is left alone while the others iterate, and
+        the compiled function evaluates columns independently, so each row
+        gets exactly what projecting it alone gives.
+        """
+        x, v = x.copy(), v.copy()
+        active = np.arange(x.shape[0])
         max_steps = 3 + int(np.ceil(-np.log2(self.eps) / 50))
         for _ in range(max_steps):
-            c, _, _, _ = self(x, v)
-            if float(np.max(np.abs(c.astype(float)))) <= 4 * self.eps:
+            c, _, _, _ = self(x[active], v[active])
+            moving = ~(np.max(np.abs(c.astype(float)), axis=1) <= 4 * self.eps)
+            active, c = active[moving], c[moving]
+            if not active.size:
                 break
-            x = x - self(x, v, c)[2]
+            x[active] = x[active] - self(x[active], v[active], c)[2]
         _, Gv, _, _ = self(x, v)
-        v = v - self(x, v, Gv)[2]
-        return x[0], v[0]
+        return x, v - self(x, v, Gv)[2]
 
-    def start(self, x0: NDArray, v0: NDArray, t_final: float, rate: float) -> tuple[NDArray, NDArray, Any, float]:
-        """Check a float64 start and complete it to the working precision.
+    def start(self, x0: NDArray, v0: NDArray, t_final: float, rate: float,
+              first_index: int | None = None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """Check float64 starts (rows ``(B, N)``) and complete them to the working precision.
 
-        Returns ``(x, v, E0, alpha)``: ``x0`` projected onto ``c = 0`` and
-        ``v0`` K-orthogonally onto ``ker G`` (:meth:`project`), the kinetic
+        Returns ``(x, v, E0, alpha)`` per row: ``x0`` projected onto ``c = 0``
+        and ``v0`` K-orthogonally onto ``ker G`` (:meth:`project`), the kinetic
         energy there, and the Baumgarte rate ``alpha = sign(t_final) rate
         sqrt(2 E0 / tr K)``.  Raises ``ValueError`` if ``max_k |c_k(x0)|``
-        exceeds :data:`START_CONSTRAINT_TOLERANCE` or the energy is not finite.
+        exceeds :data:`START_CONSTRAINT_TOLERANCE` or an energy is not finite,
+        naming the row as ``x0[first_index + k]`` (``x0`` alone if ``first_index`` is ``None``).
         """
-        c0 = np.max(np.abs(self(x0[None, :].astype(float), v0[None, :])[0].astype(float)))
-        if not c0 <= START_CONSTRAINT_TOLERANCE:
-            raise ValueError(f"x0 is not on the constraint manifold: max_k |c_k(x0)| = {c0:.3g} exceeds "
+        def name(k: int) -> str:
+            return "x0" if first_index is None else f"x0[{first_index + k}]"
+
+        c0 = np.max(np.abs(self(x0.astype(float), v0)[0].astype(float)), axis=1)
+        bad = ~(c0 <= START_CONSTRAINT_TOLERANCE)
+        if np.any(bad):
+            k = int(np.argmax(bad))
+            raise ValueError(f"{name(k)} is not on the constraint manifold: max_k |c_k(x0)| = {c0[k]:.3g} exceeds "
                              f"{START_CONSTRAINT_TOLERANCE:g}")
         x, v = self.project(as_fp(x0, self.fp), as_fp(v0, self.fp))
-        E0 = self(x[None, :], v[None, :])[3][0]
-        if not np.isfinite(float(E0)):
-            raise ValueError(f"v0 gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0)):.3g})")
+        E0 = self(x, v)[3]
+        E0f = np.array([float(e) for e in E0])
+        if not np.all(np.isfinite(E0f)):
+            k = int(np.argmax(~np.isfinite(E0f)))
+            raise ValueError(f"{name(k).replace('x0', 'v0', 1)} gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0[k])):.3g})")
         # the damping term 2 alpha G v must damp in the direction of integration: backward, it flips sign
-        alpha = float(np.sign(t_final)) * rate * float(np.sqrt(2 * float(E0) / self.trace_K))
+        alpha = float(np.sign(t_final)) * rate * np.sqrt(2 * E0f / self.trace_K)
         return x, v, E0, alpha
 
 
@@ -557,7 +574,8 @@ def solve_constrained(
     comp = compiled_constrained(system)
     t_compile = time.perf_counter()
     geo = ConstrainedGeometry(system, fp_type)
-    x, v, E0, alpha = geo.start(x0, v0, t_final, rate)
+    xs, vs, E0s, alphas = geo.start(x0[None, :], v0[None, :], t_final, rate)
+    x, v, E0, alpha = xs[0], vs[0], E0s[0], float(alphas[0])
 
     sol = GeodesicSolution(metric, fp_type, f"constrained-taylor ({stabilisation})", (0.0, t_final), {})
     sol.t_eval = grid
@@ -589,7 +607,8 @@ def solve_constrained(
                 break
             if stabilisation == "projection" and end != ends[-1]:
                 p0 = time.perf_counter()
-                x, v = geo.project(x, v)
+                xs, vs = geo.project(x[None, :], v[None, :])
+                x, v = xs[0], vs[0]
                 project_seconds += time.perf_counter() - p0
     sol.final_state = (None, x, v)
     sol.status, sol.message = status, message

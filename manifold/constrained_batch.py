@@ -136,17 +136,10 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
     geo = ConstrainedGeometry(system, float)
     comp = compiled_constrained(system)
     n, dim = x0.shape
-    starts = []
-    for k in range(n):
-        try:
-            starts.append(geo.start(x0[k], v0[k], t_final, rate))
-        except ValueError as e:
-            raise ValueError(f"start {offset + k} (x0[{offset + k}], v0[{offset + k}]): {e}") from None
-    X = np.array([s[0] for s in starts])
-    V = np.array([s[1] for s in starts])
-    E0 = np.array([s[2] for s in starts])
+    X, V, E0, alpha = geo.start(x0, v0, t_final, rate, first_index=offset)
+    E0 = E0.astype(float)
     pars = np.repeat(comp.layout.pack(system, 0.0, float)[:, None], n, axis=1)
-    pars[0] = [s[3] for s in starts]  # alpha, per trajectory (layout: par[0])
+    pars[0] = alpha  # the Baumgarte rate, per trajectory (layout: par[0])
     times, position = _with_ends(grid, t_final)
     states = np.full((n, len(times), 2 * dim), np.nan)
     ends = np.full((n, 2 * dim), np.nan)

@@ -1,0 +1,132 @@
+"""Throughput of ``free_motions`` against a Python loop of ``free_motion`` calls, and the cost of Dask.
+
+Run ``python -m benchmarks.ensemble_speed [--n 4] [--count 64] [--T 20] [--dask-count 256] [--no-dask]``.
+Prints, from one run on this machine (ratios are the numbers to compare;
+absolute times are noise on a shared machine):
+
+1. wall time of 64 trajectories of the 4-rod chain over T = 20 (hinge
+   method, float64, default tolerance, no dense output), best of 3:
+
+   * a Python loop of ``free_motion(..., method="hinges", dense=False)`` calls;
+   * ``free_motions`` serial with scalar integrators (``batch_size=1``);
+   * ``free_motions`` serial with SIMD batches (``heyoka.recommended_simd_size()`` lanes);
+   * ``free_motions`` on threads, scalar and SIMD;
+
+   and the factors: total (loop / threads + SIMD), batch (serial scalar /
+   serial SIMD), threads (serial SIMD / threads SIMD);
+2. a Dask ``LocalCluster`` (one single-threaded worker process per core)
+   against the threads backend for 256 trajectories, once the workers have
+   compiled: the overhead ``dask / threads - 1``.
+
+Every run is checked against the loop: the largest hinge difference is printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+import heyoka as hy
+import numpy as np
+
+from linkage import Chain
+from linkage.motion import free_motion, free_motions
+
+REPEATS = 3
+
+
+def starts(chain: Chain, count: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` unit-speed starts at random chart parameters of chart 0."""
+    rng = np.random.default_rng(seed)
+    atlas = chain.atlas()
+    H, V = [], []
+    for _ in range(count):
+        a = rng.uniform(-1.2, 1.2, chain.n - 2)
+        chart = atlas.charts[0]
+        v = chain.from_point(chart.tangent_vector(a, rng.normal(size=chain.n - 2)))
+        H.append(chain.from_point(chart.get_point(a)))
+        V.append(v / np.sqrt(2 * chain.kinetic_energy(v)))
+    return np.array(H), np.array(V)
+
+
+def best_of(fn, repeats: int = REPEATS) -> tuple[float, object]:
+    best, out = np.inf, None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def throughput(n: int, count: int, T: float) -> dict:
+    """Section 1."""
+    chain = Chain(n, n - 1.4)
+    H, V = starts(chain, count)
+    # compile (or load from heyoka's disk cache) every integrator once, outside the timings
+    free_motion(chain, H[0], V[0], 1.0, method="hinges", dense=False)
+    free_motions(chain, H[:1], V[:1], 1.0)
+    loop_s, loop = best_of(lambda: [free_motion(chain, h, v, T, method="hinges", dense=False) for h, v in zip(H, V)])
+    ends = np.array([chain.from_point(m.solution.end_state()[0]) for m in loop])
+    rows = {"loop of free_motion": loop_s}
+    lanes = hy.recommended_simd_size()
+    for backend in ("serial", "threads"):
+        for batch in (1, lanes):
+            seconds, ens = best_of(lambda: free_motions(chain, H, V, T, backend=backend, batch_size=batch))
+            assert ens.success.all(), ens.messages
+            gap = float(np.abs(ens.end_hinges - ends).max())
+            rows[f"free_motions {backend}, batch {batch}"] = seconds
+            print(f"  free_motions {backend:7s} batch {batch}: {seconds:.3f} s  ({loop_s / seconds:5.1f}x the loop)"
+                  f"  max |hinge - loop| = {gap:.1e}")
+    print(f"  loop of free_motion calls:      {loop_s:.3f} s  "
+          f"({np.mean([m.n_steps for m in loop]):.0f} steps per trajectory)")
+    out = {
+        "total": loop_s / rows[f"free_motions threads, batch {lanes}"],
+        "batch": rows["free_motions serial, batch 1"] / rows[f"free_motions serial, batch {lanes}"],
+        "threads": rows[f"free_motions serial, batch {lanes}"] / rows[f"free_motions threads, batch {lanes}"],
+        "threads_scalar": rows["free_motions serial, batch 1"] / rows["free_motions threads, batch 1"],
+        "overhead": loop_s / rows["free_motions serial, batch 1"],
+    }
+    print(f"  factors: total {out['total']:.1f}x (target >= 5x); SIMD batch of {lanes} lanes {out['batch']:.2f}x; "
+          f"threads ({len(os.sched_getaffinity(0))} cores) {out['threads']:.2f}x on SIMD batches, "
+          f"{out['threads_scalar']:.2f}x on scalar; one call for all instead of a loop {out['overhead']:.2f}x")
+    return out
+
+
+def dask_overhead(n: int, count: int, T: float) -> float:
+    """Section 2."""
+    from distributed import Client, LocalCluster
+
+    chain = Chain(n, n - 1.4)
+    H, V = starts(chain, count, seed=1)
+    cores = len(os.sched_getaffinity(0))
+    with LocalCluster(n_workers=cores, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        free_motions(chain, H, V, T, backend="dask", client=client)  # every worker compiles (or loads) once
+        dask_s, ens = best_of(lambda: free_motions(chain, H, V, T, backend="dask", client=client))
+    threads_s, ref = best_of(lambda: free_motions(chain, H, V, T, backend="threads"))
+    same = np.array_equal(ens.end_hinges, ref.end_hinges)
+    overhead = dask_s / threads_s - 1
+    print(f"  {count} trajectories: threads {threads_s:.3f} s, Dask LocalCluster ({cores} worker processes) "
+          f"{dask_s:.3f} s: overhead {100 * overhead:+.0f} % (target < 20 %); results identical: {same}")
+    return overhead
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=4)
+    ap.add_argument("--count", type=int, default=64)
+    ap.add_argument("--T", type=float, default=20.0)
+    ap.add_argument("--dask-count", type=int, default=256)
+    ap.add_argument("--no-dask", action="store_true")
+    args = ap.parse_args(argv)
+    print(f"1. throughput: {args.count} trajectories, n = {args.n}, T = {args.T:g} "
+          f"(heyoka {hy.__version__}, {hy.recommended_simd_size()} SIMD lanes)")
+    throughput(args.n, args.count, args.T)
+    if not args.no_dask:
+        print("2. Dask LocalCluster against threads")
+        dask_overhead(args.n, args.dask_count, args.T)
+
+
+if __name__ == "__main__":
+    main()
