@@ -50,13 +50,16 @@ def starts(chain: Chain, count: int, seed: int = 0) -> tuple[np.ndarray, np.ndar
     return np.array(H), np.array(V)
 
 
-def best_of(fn, repeats: int = REPEATS) -> tuple[float, object]:
-    best, out = np.inf, None
+def best_of(fn, repeats: int = REPEATS) -> tuple[float, float, object]:
+    """Best wall time of ``repeats`` calls, this process's CPU time / wall time in that call (cores it got), last result."""
+    best, out, share = np.inf, None, 0.0
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
+        wall = time.perf_counter() - t0
+        if wall < best:
+            best, share = wall, (time.process_time() - c0) / wall
+    return best, share, out
 
 
 def throughput(n: int, count: int, T: float) -> dict:
@@ -66,19 +69,20 @@ def throughput(n: int, count: int, T: float) -> dict:
     # compile (or load from heyoka's disk cache) every integrator once, outside the timings
     free_motion(chain, H[0], V[0], 1.0, method="hinges", dense=False)
     free_motions(chain, H[:1], V[:1], 1.0)
-    loop_s, loop = best_of(lambda: [free_motion(chain, h, v, T, method="hinges", dense=False) for h, v in zip(H, V)])
+    loop_s, loop_share, loop = best_of(lambda: [free_motion(chain, h, v, T, method="hinges", dense=False)
+                                                for h, v in zip(H, V)])
     ends = np.array([chain.from_point(m.solution.end_state()[0]) for m in loop])
     rows = {"loop of free_motion": loop_s}
     lanes = hy.recommended_simd_size()
     for backend in ("serial", "threads"):
         for batch in (1, lanes):
-            seconds, ens = best_of(lambda: free_motions(chain, H, V, T, backend=backend, batch_size=batch))
+            seconds, share, ens = best_of(lambda: free_motions(chain, H, V, T, backend=backend, batch_size=batch))
             assert ens.success.all(), ens.messages
             gap = float(np.abs(ens.end_hinges - ends).max())
             rows[f"free_motions {backend}, batch {batch}"] = seconds
             print(f"  free_motions {backend:7s} batch {batch}: {seconds:.3f} s  ({loop_s / seconds:5.1f}x the loop)"
-                  f"  max |hinge - loop| = {gap:.1e}")
-    print(f"  loop of free_motion calls:      {loop_s:.3f} s  "
+                  f"  CPU/wall {share:.2f}  max |hinge - loop| = {gap:.1e}")
+    print(f"  loop of free_motion calls:       {loop_s:.3f} s                 CPU/wall {loop_share:.2f}  "
           f"({np.mean([m.n_steps for m in loop]):.0f} steps per trajectory)")
     out = {
         "total": loop_s / rows[f"free_motions threads, batch {lanes}"],
@@ -103,12 +107,13 @@ def dask_overhead(n: int, count: int, T: float) -> float:
     with LocalCluster(n_workers=cores, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
             Client(cluster) as client:
         free_motions(chain, H, V, T, backend="dask", client=client)  # every worker compiles (or loads) once
-        dask_s, ens = best_of(lambda: free_motions(chain, H, V, T, backend="dask", client=client))
-    threads_s, ref = best_of(lambda: free_motions(chain, H, V, T, backend="threads"))
+        dask_s, _, ens = best_of(lambda: free_motions(chain, H, V, T, backend="dask", client=client))
+    threads_s, share, ref = best_of(lambda: free_motions(chain, H, V, T, backend="threads"))
     same = np.array_equal(ens.end_hinges, ref.end_hinges)
     overhead = dask_s / threads_s - 1
     print(f"  {count} trajectories: threads {threads_s:.3f} s, Dask LocalCluster ({cores} worker processes) "
-          f"{dask_s:.3f} s: overhead {100 * overhead:+.0f} % (target < 20 %); results identical: {same}")
+          f"{dask_s:.3f} s: overhead {100 * overhead:+.0f} % (target < 20 %); results identical: {same}; "
+          f"threads got {share:.2f} cores")
     return overhead
 
 
@@ -121,7 +126,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--no-dask", action="store_true")
     args = ap.parse_args(argv)
     print(f"1. throughput: {args.count} trajectories, n = {args.n}, T = {args.T:g} "
-          f"(heyoka {hy.__version__}, {hy.recommended_simd_size()} SIMD lanes)")
+          f"(heyoka {hy.__version__}, {hy.recommended_simd_size()} SIMD lanes; load average "
+          f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores: other work takes cores from the thread runs)")
     throughput(args.n, args.count, args.T)
     if not args.no_dask:
         print("2. Dask LocalCluster against threads")
