@@ -1,9 +1,10 @@
 """Many trajectories at once: chunks of work run serially, on every core, or on a Dask cluster.
 
 Nothing here knows what a trajectory is.  An ensemble is cut into chunks;
-each chunk is a picklable zero-argument callable that returns an
-:class:`EnsembleSolution` for its trajectories, and :func:`run_chunks` runs
-the chunks on a backend and keeps their order:
+each chunk is a picklable zero-argument callable that computes its
+trajectories, and :func:`map_chunks` runs the chunks on a backend and keeps
+their order (:func:`run_chunks` for chunks that return an
+:class:`EnsembleSolution`):
 
 * ``"serial"``: one after the other in this thread;
 * ``"threads"``: a thread pool with one worker per core.  heyoka's
@@ -43,7 +44,8 @@ from numpy.typing import NDArray
 from .solution import GeodesicSolution, SolveStatus
 from .validation import check_bool
 
-__all__ = ["BACKENDS", "EnsembleSolution", "backend_workers", "chunk_bounds", "progress_bar", "run_chunks"]
+__all__ = ["BACKENDS", "EnsembleSolution", "backend_workers", "check_backend", "chunk_bounds", "default_chunk_size",
+           "map_chunks", "progress_bar", "run_chunks"]
 
 #: Where the chunks of an ensemble run (see the module docstring).
 BACKENDS = ("serial", "threads", "dask")
@@ -227,15 +229,14 @@ def progress_bar(total: int, enabled: bool, unit: str = "trajectories") -> Itera
         bar.close()
 
 
-def run_chunks(chunks: Sequence[Callable[[], EnsembleSolution]], sizes: Sequence[int], *, backend: str = "serial",
-               client: Any = None, progress: bool = False) -> EnsembleSolution:
-    """Run every chunk on ``backend`` and concatenate their results in order.
+def map_chunks(chunks: Sequence[Callable[[], Any]], sizes: Sequence[int], *, backend: str = "serial",
+               client: Any = None, progress: bool = False) -> list:
+    """Run every chunk on ``backend``; return their results in the order of ``chunks``.
 
     Parameters
     ----------
     chunks
-        Zero-argument callables, each returning the :class:`EnsembleSolution`
-        of its trajectories (picklable for ``"dask"``: a ``functools.partial``
+        Zero-argument callables (picklable for ``"dask"``: a ``functools.partial``
         of a module-level function).
     sizes
         Trajectories per chunk (for the progress bar).
@@ -246,35 +247,41 @@ def run_chunks(chunks: Sequence[Callable[[], EnsembleSolution]], sizes: Sequence
     progress
         A tqdm bar over trajectories, advanced as chunks finish.
 
-    Returns
-    -------
-    EnsembleSolution
-        With ``backend`` and the ``wall_seconds`` of the whole run.  An
-        exception raised in a chunk (a bad start, a bug) propagates;
-        trajectories that fail report it in their status.
+    Raises
+    ------
+    Exception
+        Whatever a chunk raises (a bad start, a bug); trajectories that fail
+        report it in their own results instead.
     """
     check_backend(backend, client)
     if not chunks:
         raise ValueError("an ensemble needs at least one trajectory, got none")
-    wall0 = time.perf_counter()
     with progress_bar(sum(sizes), progress) as update:
         if backend == "serial":
             results = []
             for chunk, size in zip(chunks, sizes):
                 results.append(chunk())
                 update(size)
-        elif backend == "threads":
+            return results
+        if backend == "threads":
             with ThreadPoolExecutor(max_workers=backend_workers("threads")) as pool:
                 futures = [pool.submit(chunk) for chunk in chunks]
                 index = {f: k for k, f in enumerate(futures)}
                 for f in as_completed(futures):
                     update(sizes[index[f]])
-                results = [f.result() for f in futures]
-        else:
-            distributed = _dask()
-            futures = [client.submit(chunk, pure=False) for chunk in chunks]
-            index = {f.key: k for k, f in enumerate(futures)}
-            for f in distributed.as_completed(futures):
-                update(sizes[index[f.key]])
-            results = client.gather(futures)
+                return [f.result() for f in futures]
+        distributed = _dask()
+        futures = [client.submit(chunk, pure=False) for chunk in chunks]
+        index = {f.key: k for k, f in enumerate(futures)}
+        for f in distributed.as_completed(futures):
+            update(sizes[index[f.key]])
+        return client.gather(futures)
+
+
+def run_chunks(chunks: Sequence[Callable[[], EnsembleSolution]], sizes: Sequence[int], *, backend: str = "serial",
+               client: Any = None, progress: bool = False) -> EnsembleSolution:
+    """:func:`map_chunks` for chunks that return :class:`EnsembleSolution` s: one solution, in order,
+    with ``backend`` and the ``wall_seconds`` of the whole run."""
+    wall0 = time.perf_counter()
+    results = map_chunks(chunks, sizes, backend=backend, client=client, progress=progress)
     return EnsembleSolution.concatenate(results, backend=backend, wall_seconds=time.perf_counter() - wall0)
