@@ -229,7 +229,7 @@ def lyapunov_spectrum(
     Y, _ = np.linalg.qr(project(x, v, rng.standard_normal((2 * N, k))))
     n_intervals = max(1, math.ceil(t_final / interval - 1e-9))
     ends = t_final * np.arange(1, n_intervals + 1) / n_intervals  # no sliver at the end
-    logs, history, energies, times = np.zeros(k), [], [], []
+    logs, history, times, energies, energy_times = np.zeros(k), [], [], [], []
     t, n_steps, drift, failure = 0.0, 0, 0.0, None
     with comp.tangent_integrator(k, tol, compact_mode) as ta:
         ta.pars[:] = comp.layout.pack(system, float(alpha[0]), float)[: len(ta.pars)]
@@ -239,22 +239,22 @@ def lyapunov_spectrum(
             outcome, _, _, steps, *_ = ta.propagate_until(float(end))
             n_steps += steps
             y = np.array(ta.state)
-            x, v = y[:N], y[N : 2 * N]
+            x, v, t = y[:N], y[N : 2 * N], float(ta.time)
+            c, _, _, Ek = geo(x[None, :], v[None, :])  # checked where it stopped, as a single solve checks
+            energies.append(float(Ek[0]))
+            energy_times.append(t)
+            drift = max(drift, float(np.max(np.abs(c))))
             if outcome != hy.taylor_outcome.time_limit:
                 failure = str(outcome)
                 break
-            t = float(end)
             Y, Rk = np.linalg.qr(project(x, v, S @ y[2 * N :].reshape(k, 2 * N).T))
             logs += np.log(np.abs(np.diag(Rk)))
             history.append(logs / t)
             times.append(t)
-            c, _, _, Ek = geo(x[None, :], v[None, :])
-            energies.append(float(Ek[0]))
-            drift = max(drift, float(np.max(np.abs(c))))
     eps = 2 * unit_roundoff(float) if tol is None else max(tol, 2 * unit_roundoff(float))
     dev = np.abs(np.array(energies) - E0) / E0
-    status, message = verdict(energy_violation(dev, times, n_steps, eps, "ambient coordinates"), drift, n_steps,
-                              eps, t, failure)
+    status, message = verdict(energy_violation(dev, energy_times, n_steps, eps, "ambient coordinates"), drift,
+                              n_steps, eps, t, failure)
     result = LyapunovResult(history[-1] if history else np.full(k, np.nan), np.array(times),
                             np.array(history).reshape(-1, k), deviations, interval, speed, n_steps,
                             float(np.max(dev, initial=0.0)), status, message)
