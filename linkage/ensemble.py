@@ -201,12 +201,10 @@ def free_motions(
                  and resolve_fp_type(kwargs.get("fp_type", float)) is float
                  and kwargs.get("stabilisation", "baumgarte") == "baumgarte")
     if batchable:
-        options = {k: v for k, v in kwargs.items() if k in ("tol", "rate")}
-        compact = kwargs.get("compact_mode")
+        options = {k: v for k, v in kwargs.items() if k in ("tol", "rate", "compact_mode")}
         solution = solve_constrained_ensemble(
-            ChainSystem(chain), X0, V0, t_final, t_eval=grid, compact_mode=False if compact is None else compact,
-            batch_size=batch_size, chunk_size=chunk_size, backend=backend, client=client, progress=progress,
-            **options)
+            ChainSystem(chain), X0, V0, t_final, t_eval=grid, batch_size=batch_size, chunk_size=chunk_size,
+            backend=backend, client=client, progress=progress, **options)
         return EnsembleMotion(chain, solution)
     if batch_size not in (None, 1):
         raise ValueError(f"batch_size={batch_size!r}: SIMD batches run the hinge method in float64 with Baumgarte "

@@ -59,7 +59,7 @@ from .steppers import MAX_TOLERANCE, taylor_advance
 from .validation import check_bool, check_real, check_time_grid, real_array
 
 __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "ConstrainedLayout", "ConstrainedSystem",
-           "compiled_constrained", "constraint_bound", "solve_constrained", "verdict"]
+           "compiled_constrained", "constraint_bound", "default_compact_mode", "solve_constrained", "verdict"]
 
 Expr = hy.expression
 #: How drift off the constraints is held back (see the module docstring).
@@ -475,6 +475,13 @@ class ConstrainedGeometry:
         return x, v, E0, alpha
 
 
+def default_compact_mode(system: ConstrainedSystem, fp_type: Any) -> bool:
+    """heyoka's compact mode by default: off (unrolled code) for float64 and long double up to ``N =
+    UNROLL_MAX_DIM``, on beyond and for software floating types (see :func:`solve_constrained`)."""
+    hardware = is_double(fp_type) or fp_type is np.longdouble
+    return not (hardware and system.ambient_dim <= UNROLL_MAX_DIM)
+
+
 def constraint_bound(n_steps: int, eps: float) -> float:
     """The bound on ``max_k |c_k|`` after ``n_steps`` steps at relative tolerance ``eps``: ``1000 sqrt(n_steps + 1) eps``."""
     return float(1e3 * np.sqrt(n_steps + 1) * eps)
@@ -599,8 +606,7 @@ def solve_constrained(
     rate = check_real("rate", rate, positive=True)
     interval = check_real("projection_interval", projection_interval, positive=True)
     if compact_mode is None:
-        hardware = is_double(fp_type) or fp_type is np.longdouble
-        compact_mode = not (hardware and system.ambient_dim <= UNROLL_MAX_DIM)
+        compact_mode = default_compact_mode(system, fp_type)
     compact_mode, dense, throw = (check_bool("compact_mode", compact_mode), check_bool("dense", dense),
                                   check_bool("throw", throw))
     N = system.ambient_dim

@@ -27,7 +27,7 @@ import heyoka as hy
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, verdict
+from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, default_compact_mode, verdict
 from .ensemble import EnsembleSolution, backend_workers, chunk_bounds, default_chunk_size, run_chunks
 from .precision import unit_roundoff
 from .solution import energy_violation
@@ -47,7 +47,7 @@ def solve_constrained_ensemble(
     *,
     tol: float | None = None,
     rate: float = 1.0,
-    compact_mode: bool = False,
+    compact_mode: bool | None = None,
     t_eval: ArrayLike | None = None,
     batch_size: int | None = None,
     chunk_size: int | None = None,
@@ -72,7 +72,9 @@ def solve_constrained_ensemble(
     rate
         Baumgarte rate in units of each trajectory's speed scale, ``> 0``.
     compact_mode
-        heyoka's compact mode (faster compile, slower steps).
+        heyoka's compact mode (faster compile, slower steps); ``None``: as
+        :func:`~manifold.constrained.solve_constrained` chooses
+        (:func:`~manifold.constrained.default_compact_mode`).
     t_eval
         Times (1-d, within ``[0, t_final]``, in integration order) at which
         states are kept, for every trajectory.
@@ -96,7 +98,8 @@ def solve_constrained_ensemble(
     if tol is not None:
         tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
     rate = check_real("rate", rate, positive=True)
-    compact_mode = check_bool("compact_mode", compact_mode)
+    compact_mode = check_bool("compact_mode", default_compact_mode(system, float) if compact_mode is None
+                              else compact_mode)
     grid = None if t_eval is None else check_time_grid(t_eval, t_final)
     dim = system.ambient_dim
     x0, v0 = real_array("x0", x0), real_array("v0", v0)
