@@ -16,7 +16,8 @@ absolute times are noise on a shared machine):
    serial SIMD), threads (serial SIMD / threads SIMD);
 2. a Dask ``LocalCluster`` (one single-threaded worker process per core)
    against the threads backend for 256 trajectories, once the workers have
-   compiled: the overhead ``dask / threads - 1``.
+   compiled: the overhead ``dask / threads - 1`` at ``T`` and at ``10 T``,
+   and Dask's own round trip for as many trivial tasks (its floor).
 
 Every run is checked against the loop: the largest hinge difference is printed.
 """
@@ -32,6 +33,7 @@ import numpy as np
 
 from linkage import Chain
 from linkage.motion import free_motion, free_motions
+from manifold.ensemble import chunk_bounds, default_chunk_size
 
 REPEATS = 3
 
@@ -97,24 +99,34 @@ def throughput(n: int, count: int, T: float) -> dict:
     return out
 
 
-def dask_overhead(n: int, count: int, T: float) -> float:
-    """Section 2."""
+def _identity(x: object) -> object:
+    return x
+
+
+def dask_overhead(n: int, count: int, T: float) -> dict:
+    """Section 2: at ``T`` and at ``10 T`` (ten times the work per task), and Dask's own round trip."""
     from distributed import Client, LocalCluster
 
     chain = Chain(n, n - 1.4)
     H, V = starts(chain, count, seed=1)
     cores = len(os.sched_getaffinity(0))
+    out = {}
     with LocalCluster(n_workers=cores, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
             Client(cluster) as client:
         free_motions(chain, H, V, T, backend="dask", client=client)  # every worker compiles (or loads) once
-        dask_s, _, ens = best_of(lambda: free_motions(chain, H, V, T, backend="dask", client=client))
-    threads_s, share, ref = best_of(lambda: free_motions(chain, H, V, T, backend="threads"))
-    same = np.array_equal(ens.end_hinges, ref.end_hinges)
-    overhead = dask_s / threads_s - 1
-    print(f"  {count} trajectories: threads {threads_s:.3f} s, Dask LocalCluster ({cores} worker processes) "
-          f"{dask_s:.3f} s: overhead {100 * overhead:+.0f} % (target < 20 %); results identical: {same}; "
-          f"threads got {share:.2f} cores")
-    return overhead
+        chunks = len(chunk_bounds(count, default_chunk_size(count, cores, hy.recommended_simd_size())))
+        floor, _, _ = best_of(lambda: client.gather([client.submit(_identity, k, pure=False) for k in range(chunks)]),
+                              repeats=10)
+        print(f"  Dask's own round trip for {chunks} trivial tasks (the floor of its overhead): {floor * 1e3:.0f} ms")
+        for length in (T, 10 * T):
+            dask_s, _, ens = best_of(lambda: free_motions(chain, H, V, length, backend="dask", client=client))
+            threads_s, share, ref = best_of(lambda: free_motions(chain, H, V, length, backend="threads"))
+            same = np.array_equal(ens.end_hinges, ref.end_hinges)
+            out[length] = dask_s / threads_s - 1
+            print(f"  {count} trajectories, T = {length:g}: threads {threads_s:.3f} s, Dask LocalCluster ({cores} worker "
+                  f"processes) {dask_s:.3f} s: overhead {100 * out[length]:+.0f} % (target < 20 %); "
+                  f"results identical: {same}; the threads run got {share:.2f} cores")
+    return out
 
 
 def main(argv: list[str] | None = None) -> None:
