@@ -11,6 +11,7 @@ from __future__ import annotations
 import pickle
 import sys
 
+import distributed  # the 'distributed' extra, part of the 'test' extra
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -199,7 +200,6 @@ def test_memory_does_not_grow_with_the_steps():
 
 
 def test_dask_local_cluster_agrees_with_serial():
-    distributed = pytest.importorskip("distributed")  # the 'distributed' extra (installed with 'test')
     chain = Chain(4, 2.6)
     H, V = _starts(chain, 10, seed=4)
     ts = np.linspace(0, 10.0, 5)
@@ -213,7 +213,6 @@ def test_dask_local_cluster_agrees_with_serial():
 
 
 def test_progress_bar_counts_trajectories(capsys):
-    pytest.importorskip("tqdm")
     chain = Chain(4, 2.6)
     H, V = _starts(chain, 5)
     free_motions(chain, H, V, 1.0, progress=True, chunk_size=2, **FAST)
@@ -249,7 +248,6 @@ def test_optional_extras_missing_give_a_clear_error(monkeypatch, module, kwargs,
 def test_bad_arguments_are_refused_by_name(change, error, match):
     chain = Chain(4, 2.6)
     H, V = _starts(chain, 3)
-    pytest.importorskip("distributed")
     with pytest.raises(error, match=match):
         free_motions(chain, H, V, 1.0, **{**FAST, **change})
 
