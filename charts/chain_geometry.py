@@ -24,6 +24,7 @@ def validate_chain(n: object, L: object) -> tuple[int, float]:
     """
     if isinstance(n, bool) or not isinstance(n, numbers.Integral):
         raise ValueError(f"n (number of rods) must be an integer >= 2, got {n!r}")
+    n = int(n)
     if n < 2:
         raise ValueError(f"n (number of rods) must be an integer >= 2, got {n}")
     message = (f"L must be a finite real number with {n - 2} < L < {n} (the range where the configuration "
@@ -85,7 +86,7 @@ def relabel_matrix(order: ArrayLike) -> NDArray:
     those of the chain in its own rod order; ``P`` is ``(n-1, n-1)`` with
     entries in ``{-1, 0, 1}``.  Only ``P`` enters velocities (``L`` is fixed).
     """
-    n = len(order)
+    n = np.asarray(order).size
     cols = [relabel_hinges(np.eye(n - 1)[k], order, 0.0) for k in range(n - 1)]
     return np.column_stack(cols).real
 

@@ -9,6 +9,8 @@ are interleaved real vectors of the ``2(n-1)`` hinge coordinates
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -175,8 +177,7 @@ class SuspensionChart(SymbolicChart):
     def rod_angles(self, a: ArrayLike) -> NDArray:
         """Rod angles ``theta_1 .. theta_n`` from the seed's angle form (own rod order)."""
         a = self.check_parameters(a)
-        f = formula.rod_angles(self._columns(a), self.L, NUMPY, self.sheet)
-        f = np.stack(np.broadcast_arrays(*f), axis=-1)
+        f = np.stack(np.broadcast_arrays(*formula.rod_angles(self._columns(a), self.L, NUMPY, self.sheet)), axis=-1)
         out = np.empty_like(f)
         out[..., self.order] = f
         return out
@@ -209,6 +210,8 @@ class SuspensionAtlas(Atlas):
         The measured worst best-chart quality, rounded down
         (:data:`QUALITY_FLOOR`; ``None`` where not measured).
     """
+
+    charts: Sequence[SuspensionChart]  # narrower than Atlas.charts: sphere_point, hinges, rod_angles are there
 
     def __init__(self, n: int, L: float, switch_threshold: float = 0.25) -> None:
         n, L = validate_chain(n, L)

@@ -1,4 +1,4 @@
-"""The physical chain model: rods, masses, configurations, drawing.
+"""The physical chain model: rods, masses, configurations, free motion, pictures and animations.
 
 May import ``charts`` and ``manifold`` (never the other way round).
 See ``linkage/README.md``.
@@ -21,8 +21,14 @@ _EXPORTS = {
     "Chain": ".chain",
     "ConfigurationError": ".chain",
     "HingeConstraints": ".constraints",
+    "animate": ".draw",
+    "animation": ".draw",
+    "draw_chain_at": ".draw",
+    "draw_chart_timeline": ".draw",
     "draw_configuration": ".draw",
     "draw_configurations": ".draw",
+    "draw_energy_error": ".draw",
+    "draw_sphere_path": ".draw",
 }
 
 __all__ = list(_EXPORTS)

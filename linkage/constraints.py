@@ -295,11 +295,12 @@ def start_state(
     if not np.isfinite(energy):
         raise ValueError(f"velocity0 gives a non-finite kinetic energy (max |velocity0| = {np.max(np.abs(v0)):.3g})")
     residual = np.max(np.abs(system.jacobian(x0) @ v0))
-    if residual > tangent_tol * max(1.0, np.linalg.norm(v0)):
+    scale = max(1.0, float(np.linalg.norm(v0)))
+    if residual > tangent_tol * scale:
         if not project_velocity:
             raise ValueError(
                 f"velocity0 is not tangent to the configuration space: max_k |(G v)_k| = {residual:.3g} "
-                f"exceeds tangent_tol * max(1, |v|) = {tangent_tol * max(1.0, np.linalg.norm(v0)):.3g} "
+                f"exceeds tangent_tol * max(1, |v|) = {tangent_tol * scale:.3g} "
                 "(pass project_velocity=True to project it)"
             )
         v0 = system.project_velocity(x0, v0)

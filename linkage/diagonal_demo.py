@@ -100,6 +100,7 @@ def plot_diagonal_polytope(space: DiagonalSpace, samples: dict[str, DiagonalSamp
 
 
 def main(argv: list[str] | None = None) -> None:
+    """The command line ``python -m linkage.diagonal_demo`` (``argv``: its arguments; default ``sys.argv``)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lengths", type=float, nargs="+", default=list(EXAMPLE))
     parser.add_argument("--L", type=float, default=3.0)

@@ -115,7 +115,7 @@ def _checked_slacks(lengths: NDArray, L: float, xs: NDArray) -> tuple[NDArray, N
     bad = s < -tol
     if np.any(bad):
         *lead, t, _ = (int(i) for i in np.argwhere(bad)[0])
-        k, a, c, l = t + 2, d[(*lead, t)], d[(*lead, t + 1)], lengths[t + 1]
+        k, a, c, l = t + 2, d[tuple(lead) + (t,)], d[tuple(lead) + (t + 1,)], lengths[t + 1]
         where = f"x[{tuple(lead)}]" if lead else "x"
         raise ValueError(
             f"{where} is outside the diagonal space: triangle T_{k} needs |d_{k-1} - l_{k}| <= d_{k} <= d_{k-1} + l_{k}, "
@@ -460,7 +460,7 @@ class DiagonalSpace:
         # reductions over rows run across contiguous memory; einsum, not BLAS,
         # for these skinny products (threads only contend on shared cores).
         x = np.repeat(centre[:, None], N, axis=1)
-        chol = np.eye(self.dim)
+        chol: NDArray = np.eye(self.dim)
         for step in range(steps):
             if step == steps // 3:
                 cov = np.atleast_2d(np.cov(x)) + 1e-12 * np.eye(self.dim)

@@ -1,5 +1,15 @@
-"""Matplotlib drawings of chain configurations (pins, rods, hinges).
+"""Pictures and animations of chains and their motions (matplotlib).
 
+Configurations: :func:`draw_configuration`, :func:`draw_configurations`.
+A solved motion (a :class:`~linkage.motion.ChainMotion`): the chain at a time
+(:func:`draw_chain_at`), the path on the configuration sphere coloured by the
+active chart with the switches marked (:func:`draw_sphere_path`, in the
+coordinates of :func:`sphere_coordinates`), the energy error and the chart
+timeline against time (:func:`draw_energy_error`, :func:`draw_chart_timeline`),
+and the moving chain (:func:`animation`, written to a file by :func:`animate`).
+
+Every ``draw_*`` function draws on an ``Axes`` the caller made (so it works in
+a plain ``matplotlib.figure.Figure`` as well as with ``pyplot``) and returns it.
 matplotlib is imported inside the functions that need it, so that
 ``import linkage`` does not load a plotting library.
 """
@@ -7,24 +17,42 @@ matplotlib is imported inside the functions that need it, so that
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
+
+from manifold.validation import check_real, real_array
 
 if TYPE_CHECKING:
+    from matplotlib.animation import FuncAnimation
     from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from .motion import ChainMotion
+
+__all__ = ["animate", "animation", "animation_writer", "draw_chain_at", "draw_chart_timeline", "draw_configuration",
+           "draw_configurations", "draw_energy_error", "draw_sphere_path", "sphere_coordinates"]
+
+#: ``gid`` of the artists that mark chart switches (find them with ``artist.get_gid()``).
+SWITCH_GID = "chart switch"
 
 
-def _full_chain(hinges: ArrayLike, L: float) -> np.ndarray:
+def _full_chain(hinges: ArrayLike, L: float) -> NDArray:
+    """``p_0 = 0, p_1, ..., p_{n-1}, p_n = L`` along the last axis."""
     h = np.asarray(hinges, dtype=complex)
-    return np.concatenate([[0.0], h, [L]])
+    ends = np.zeros(h.shape[:-1] + (1,), dtype=complex)
+    return np.concatenate([ends, h, ends + L], axis=-1)
 
 
 def draw_configuration(
-    ax: Axes, hinges: ArrayLike, L: float, color: str = "C0", alpha: float = 1.0, label: str | None = None
+    ax: Axes, hinges: ArrayLike, L: float, color: Any = "C0", alpha: float = 1.0, label: str | None = None
 ) -> Axes:
     """Draw one configuration on ``ax``: rods as lines, hinges as dots, pins as triangles.
+
+    The polyline is ``p_0 = 0, p_1, ..., p_{n-1}, p_n = L`` (rod ``e_k =
+    p_k - p_{k-1}`` is its ``k``-th piece), drawn in the complex plane.
 
     Parameters
     ----------
@@ -81,3 +109,342 @@ def draw_configurations(
     if labels is not None:
         ax.legend(fontsize="small")
     return ax
+
+
+def _times(motion: ChainMotion, times: ArrayLike | None, samples: int) -> NDArray:
+    """``times`` as a 1-d float array, or ``samples`` evenly spaced times over the solved span."""
+    if times is None:
+        return np.linspace(0.0, float(motion.solution.t_reached), samples)
+    ts = real_array("times", times)
+    if ts.ndim != 1 or ts.size == 0:
+        raise ValueError(f"times must be a non-empty 1-d array of times, got shape {ts.shape}")
+    return ts
+
+
+def _integer(name: str, value: object, minimum: int) -> int:
+    """``value`` as an ``int`` if it is an integer ``>= minimum``, else a ``ValueError`` naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def _atlas_ids(motion: ChainMotion) -> list:
+    """The chart ids of the motion's atlas (the chain's own atlas for a method that was given none)."""
+    metric = motion.solution.metric
+    return list((motion.chain.atlas() if metric is None else metric.atlas).ids)
+
+
+def _chart_label(motion: ChainMotion, chart: int) -> str:
+    return f"chart {_atlas_ids(motion)[chart]}"
+
+
+def sphere_coordinates(motion: ChainMotion, times: ArrayLike) -> NDArray:
+    """The motion on the round sphere ``S^(n-2)`` in ``R^(n-1)``, read in chart 0 (shape ``(len(times), n-1)``).
+
+    With chart 0's suspension coordinates ``a = (phi_n, ..., phi_4, t)``
+    (:meth:`charts.SuspensionChart.sphere_point`)
+
+    .. math::
+
+        s = (\\sin\\phi_n,\\ \\cos\\phi_n \\sin\\phi_{n-1},\\ \\dots,\\
+             \\textstyle\\prod_m \\cos\\phi_m \\cos t,\\ \\prod_m \\cos\\phi_m \\sin t),
+
+    a homeomorphism of the configuration space onto the unit sphere: continuous
+    through chart 0's poles (where ``cos phi_m = 0`` and ``t`` is arbitrary), so
+    the picture is one smooth path whatever chart integrated it.  For ``n = 4``
+    it is the whole configuration sphere ``S^2``.
+
+    Parameters
+    ----------
+    motion
+        A solved motion with dense output.
+    times
+        Times within the solved span.
+    """
+    chart0 = motion.chain.atlas().charts[0]
+    hinges = motion(real_array("times", times))[0]
+    return chart0.sphere_point(chart0.get_parameters(motion.chain.to_point(hinges)))
+
+
+def draw_chain_at(ax: Axes, motion: ChainMotion, t: float, color: Any = "C0", label: str | None = None) -> Axes:
+    """Draw the chain of ``motion`` at time ``t`` (:func:`draw_configuration` of ``motion(t)``), titled with ``t``.
+
+    Parameters
+    ----------
+    ax
+        A matplotlib ``Axes``.
+    motion
+        A solved motion with dense output.
+    t
+        A time within the solved span.
+    color, label
+        Passed to :func:`draw_configuration`.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        ``ax``, titled with ``t`` and the chart active there.
+    """
+    t = check_real("t", t)
+    draw_configuration(ax, motion(t)[0], motion.chain.L, color=color, label=label)
+    ax.set_title(f"t = {t:.4g}, {_chart_label(motion, int(motion.solution.parameters(t)[0]))}")
+    return ax
+
+
+def draw_sphere_path(
+    ax: Axes, motion: ChainMotion, times: ArrayLike | None = None, *, samples: int = 2000, switches: bool = True
+) -> Axes:
+    """Draw the path on the configuration sphere (:func:`sphere_coordinates`), coloured by the active chart.
+
+    One line per stretch in one chart, in colour ``C<chart>`` (a hinge-space
+    method has no active chart: its path is coloured by the best chart at each
+    time); a star at the start, crosses at the chart switches (``gid``
+    :data:`SWITCH_GID`).  For ``n = 4`` the configuration space is the sphere
+    ``S^2`` drawn (a light wireframe); for ``n > 4`` the first three of the
+    ``n - 1`` sphere coordinates are shown, a projection of ``S^(n-2)``.
+
+    Parameters
+    ----------
+    ax
+        A 3-d matplotlib ``Axes`` (``fig.add_subplot(projection="3d")``).
+    motion
+        A solved motion with dense output, ``n >= 4``.
+    times
+        Times at which the path is sampled (default: ``samples`` evenly spaced over the solved span).
+    samples
+        Number of default times.
+    switches
+        Mark the chart switches.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        ``ax``.
+    """
+    from mpl_toolkits.mplot3d.axes3d import Axes3D  # ships with matplotlib
+
+    n = motion.chain.n
+    if n < 4:
+        raise ValueError(f"the path on the configuration sphere needs n >= 4 (S^(n-2) drawn in R^3), got n = {n}: "
+                         "for n = 3 the configuration space is a circle")
+    if not isinstance(ax, Axes3D):
+        raise ValueError(f"ax must be a 3-d Axes (fig.add_subplot(projection='3d')), got {type(ax).__name__}")
+    ts = _times(motion, times, samples)
+    s = sphere_coordinates(motion, ts)[:, :3]
+    active = np.asarray(motion.solution.parameters(ts)[0])
+    if n == 4:
+        u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 25), np.linspace(0, np.pi, 13))
+        ax.plot_wireframe(np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v), color="0.85", lw=0.4)
+    cuts = np.flatnonzero(np.diff(active)) + 1
+    labelled: set[int] = set()
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(ts)]):
+        chart = int(active[a])
+        stretch = s[a : min(b + 1, len(ts))]  # joined to the next stretch's first point: no gaps in the path
+        ax.plot(*stretch.T, "-", color=f"C{chart}", lw=1.2,
+                label=None if chart in labelled else _chart_label(motion, chart))
+        labelled.add(chart)
+    ax.plot(*s[:1].T, "*", color="k", ms=11, label="start")
+    if switches and motion.solution.switches:
+        marks = sphere_coordinates(motion, [sw.time for sw in motion.solution.switches])[:, :3]
+        ax.plot(*marks.T, "x", color="k", ms=5, linestyle="none", label="chart switches", gid=SWITCH_GID)
+    for set_lim in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
+        set_lim(-1, 1)
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_xlabel("$s_1$")
+    ax.set_ylabel("$s_2$")
+    ax.set_zlabel("$s_3$")
+    ax.set_title(f"path on $S^{{{n - 2}}}$ (chart-0 sphere coordinates" + (")" if n == 4 else ", first 3 of n-1)"))
+    ax.legend(fontsize="x-small")
+    return ax
+
+
+def draw_energy_error(ax: Axes, motion: ChainMotion) -> Axes:
+    """Draw the relative energy error ``|E(t) - E(0)| / E(0)`` of the solver's record against ``t`` (log scale).
+
+    The record is the solver's own (every step, or every segment end with
+    ``dense=False``), the differences taken in the working precision
+    (:meth:`manifold.GeodesicSolution.energy_deviations`); exact zeros are
+    not drawn on the log scale.  Chart switches are thin grey vertical lines
+    (``gid`` :data:`SWITCH_GID`).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        ``ax``.
+    """
+    sol = motion.solution
+    t = np.array([float(x) for x in sol.energy_times])
+    err = sol.energy_deviations()
+    shown = err > 0
+    ax.semilogy(t[shown], err[shown], ".-", color="C0", ms=2, lw=0.6, label="$|E - E_0| / E_0$")
+    for sw in sol.switches:
+        ax.axvline(sw.time, color="0.8", lw=0.5, zorder=0, gid=SWITCH_GID)
+    ax.set_xlabel("t")
+    ax.set_ylabel("relative energy error")
+    ax.set_title(f"energy error (max {sol.relative_energy_error:.1e}; grey: switches)")
+    return ax
+
+
+def draw_chart_timeline(ax: Axes, motion: ChainMotion) -> Axes:
+    """Draw which chart integrated the motion when: one bar per stay in a chart, at its row; switches as lines.
+
+    Row ``i`` is chart ``i`` of the atlas (labelled with its id), coloured
+    ``C<i>`` as in :func:`draw_sphere_path`; a segment integrated in hinge
+    coordinates (no chart) sits in an extra row ``-1``.  Each switch is a
+    vertical line from its old chart's row to its new one at the switch time
+    (``gid`` :data:`SWITCH_GID`).
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        ``ax``.
+    """
+    sol = motion.solution
+    ids = _atlas_ids(motion)
+    rows = [-1 if seg.chart is None else seg.chart for seg in sol.segments]
+    first = [k for k in range(len(rows)) if k == 0 or rows[k] != rows[k - 1]]  # an angle wrap keeps the chart
+    for k, last in zip(first, first[1:] + [len(rows)]):
+        ax.plot([float(sol.segments[k].t_start), float(sol.segments[last - 1].t_end)], [rows[k], rows[k]], "-", lw=6,
+                solid_capstyle="butt", color="0.5" if rows[k] < 0 else f"C{rows[k]}")
+    for sw in sol.switches:
+        ax.plot([sw.time, sw.time], [sw.from_chart, sw.to_chart], "-", color="k", lw=0.6, gid=SWITCH_GID)
+    ticks = ([-1] if -1 in rows else []) + list(range(len(ids)))
+    ax.set_yticks(ticks, (["hinge space"] if -1 in rows else []) + [str(i) for i in ids])
+    ax.set_ylim(min(ticks) - 0.6, len(ids) - 0.4)
+    ax.set_xlabel("t")
+    ax.set_title(f"active chart ({sol.n_switches} switches)")
+    return ax
+
+
+def animation(
+    motion: ChainMotion,
+    times: ArrayLike | None = None,
+    *,
+    frames: int = 150,
+    fps: int = 25,
+    sphere: bool | None = None,
+    fig: Figure | None = None,
+) -> FuncAnimation:
+    """The moving chain as a matplotlib ``FuncAnimation`` (show it in a notebook with ``.to_jshtml()``).
+
+    Frame ``k`` draws the chain at ``times[k]``, coloured by the chart active
+    there (``C<chart>``), and, with ``sphere``, the point moving along the
+    path of :func:`draw_sphere_path`.  The axes keep one scale for all frames.
+
+    Parameters
+    ----------
+    motion
+        A solved motion with dense output.
+    times
+        Frame times within the solved span (default: ``frames`` evenly spaced over it).
+    frames
+        Number of default frames, ``>= 2``.
+    fps
+        Frames per second (the delay between frames when shown).
+    sphere
+        Add the configuration-sphere panel (default: when ``n >= 4``).
+    fig
+        The ``Figure`` to draw on (default: a new one, outside ``pyplot``).
+
+    Returns
+    -------
+    matplotlib.animation.FuncAnimation
+    """
+    from matplotlib.animation import FuncAnimation
+    from matplotlib.figure import Figure
+
+    ts = _times(motion, times, _integer("frames", frames, 2))
+    fps = _integer("fps", fps, 1)
+    sphere = motion.chain.n >= 4 if sphere is None else sphere
+    L = motion.chain.L
+    p = _full_chain(motion(ts)[0], L)
+    charts = np.asarray(motion.solution.parameters(ts)[0])
+    if fig is None:
+        fig = Figure(figsize=(10.0 if sphere else 5.5, 4.8))
+    ax = fig.add_subplot(1, 2 if sphere else 1, 1)
+    pad = 0.15
+    ax.set_xlim(min(0.0, p.real.min()) - pad, max(L, p.real.max()) + pad)
+    ax.set_ylim(p.imag.min() - pad, p.imag.max() + pad)
+    ax.set_aspect("equal")
+    ax.plot([0, L], [0, 0], "k^", ms=9)
+    (rods,) = ax.plot([], [], "-o", lw=2, ms=4)
+    artists: list[Any] = [rods]
+    if sphere:
+        ax3 = fig.add_subplot(1, 2, 2, projection="3d")
+        draw_sphere_path(ax3, motion, np.linspace(ts.min(), ts.max(), 2000), switches=False)  # smooth, not per frame
+        s = sphere_coordinates(motion, ts)[:, :3]
+        (dot,) = ax3.plot(*s[:1].T, "o", color="k", ms=7)
+        artists.append(dot)
+
+    def update(k: int) -> list[Any]:
+        rods.set_data(p[k].real, p[k].imag)
+        rods.set_color(f"C{charts[k]}")
+        ax.set_title(f"t = {ts[k]:7.2f}, {_chart_label(motion, int(charts[k]))}")
+        if sphere:
+            dot.set_data_3d(*s[k : k + 1].T)
+        return artists
+
+    update(0)
+    fig.tight_layout()
+    return FuncAnimation(fig, update, frames=len(ts), interval=1000.0 / fps, blit=False)
+
+
+def animate(motion: ChainMotion, path: str | Path, *, dpi: float = 80.0, **kwargs: Any) -> Path:
+    """Write the animation of ``motion`` (:func:`animation`) to ``path``: ``.gif`` (Pillow) or ``.mp4`` (ffmpeg).
+
+    ``animate(motion, "motion.gif")`` is all it takes.
+
+    Parameters
+    ----------
+    motion
+        A solved motion with dense output.
+    path
+        File to write; its suffix chooses the writer: ``.gif`` (matplotlib's
+        ``PillowWriter``, always available) or ``.mp4`` (``FFMpegWriter``,
+        needs the ``ffmpeg`` program on the ``PATH``).
+    dpi
+        Resolution of the frames.
+    **kwargs
+        Passed to :func:`animation` (``times``, ``frames``, ``fps``, ``sphere``).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    ValueError
+        If the suffix is neither ``.gif`` nor ``.mp4``.
+    RuntimeError
+        For ``.mp4`` without ffmpeg.
+    """
+    dpi = check_real("dpi", dpi, positive=True)
+    path = Path(path)
+    writer = animation_writer(path, kwargs.get("fps", 25))
+    animation(motion, **kwargs).save(path, writer=writer, dpi=dpi)
+    return path
+
+
+def animation_writer(path: str | Path, fps: int = 25) -> Any:
+    """The matplotlib writer for ``path``'s suffix: ``PillowWriter`` for ``.gif``, ``FFMpegWriter`` for ``.mp4``.
+
+    Raises
+    ------
+    ValueError
+        If the suffix is neither ``.gif`` nor ``.mp4``.
+    RuntimeError
+        For ``.mp4`` when ``ffmpeg`` is not on the ``PATH``.
+    """
+    from matplotlib import animation as mpl_animation
+
+    fps = _integer("fps", fps, 1)
+    suffix = Path(path).suffix.lower()
+    if suffix == ".gif":
+        return mpl_animation.PillowWriter(fps=fps)
+    if suffix == ".mp4":
+        if not mpl_animation.writers.is_available("ffmpeg"):
+            raise RuntimeError(f"writing {str(path)!r} needs ffmpeg on the PATH (matplotlib's FFMpegWriter), and "
+                               "none was found: install ffmpeg, or write a .gif (Pillow, always available)")
+        return mpl_animation.FFMpegWriter(fps=fps)
+    raise ValueError(f"path must end in .gif (Pillow) or .mp4 (ffmpeg), got {str(path)!r}")

@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from manifold.constrained_batch import solve_constrained_ensemble
 from manifold.ensemble import EnsembleSolution, backend_workers, chunk_bounds, default_chunk_size, run_chunks
 from manifold.precision import resolve_fp_type
+from manifold.progress import ProgressArgument
 from manifold.solution import SolveStatus
 from manifold.validation import check_positive_int, check_time_grid
 
@@ -130,7 +131,7 @@ def free_motions(
     t_eval: ArrayLike | None = None,
     backend: str = "serial",
     client: Any = None,
-    progress: bool = False,
+    progress: ProgressArgument = False,
     batch_size: int | None = None,
     chunk_size: int | None = None,
     tangent_tol: float = 1e-9,
@@ -168,7 +169,10 @@ def free_motions(
     client
         A ``dask.distributed.Client`` for ``backend="dask"``.
     progress
-        A tqdm bar over trajectories (needs the ``progress`` extra).
+        ``True``: a tqdm bar over trajectories (needs the ``progress`` extra);
+        a callable: :class:`manifold.progress.ProgressUpdate` s counting
+        trajectories (``manifold.ensemble.progress_bar``); ``None``: the
+        callback of an enclosing ``manifold.progress.reporting`` block.
     batch_size
         SIMD lanes per batch integrator (hinge method in float64 only);
         ``None``: ``heyoka.recommended_simd_size()``; 1: scalar steps.
@@ -223,6 +227,7 @@ def solve_motion_chunk(chain: Chain, X0: NDArray, V0: NDArray, t_final: float, g
     """One chunk of single :func:`~linkage.motion.free_motion` solves (starts checked by :func:`free_motions`)."""
     from .motion import free_motion
 
+    # progress=False: the ensemble reports per chunk; single solves inside it stay silent
     solutions = [free_motion(chain, chain.from_point(x), chain.from_point(v), t_final, method=method, dense=False,
-                             throw=False, t_eval=grid, **options).solution for x, v in zip(X0, V0)]
+                             throw=False, t_eval=grid, progress=False, **options).solution for x, v in zip(X0, V0)]
     return EnsembleSolution.from_solutions(solutions, t_final, grid)

@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold.ensemble import backend_workers, chunk_bounds, default_chunk_size, map_chunks
 from manifold.lyapunov import LyapunovResult, lyapunov_spectrum
+from manifold.progress import ProgressArgument
 from manifold.validation import check_positive_int
 
 from .chain import Chain
@@ -85,7 +86,7 @@ def lyapunov_exponents(
     *,
     backend: str = "serial",
     client: Any = None,
-    progress: bool = False,
+    progress: ProgressArgument = False,
     chunk_size: int | None = None,
     tangent_tol: float = 1e-9,
     project_velocity: bool = False,

@@ -20,6 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold import GeodesicSolution, solve_chart_exp_ode
 from manifold.constrained import solve_constrained
+from manifold.progress import ProgressArgument
 
 from .chain import Chain
 from .constraints import ChainSystem, start_state
@@ -60,7 +61,7 @@ class ChainMotion:
     @cached_property
     def _recorded(self) -> tuple[NDArray, NDArray, NDArray]:
         sol = self.solution
-        if sol.t_eval is not None:
+        if sol.t_eval is not None and sol.points is not None and sol.velocities is not None:
             return sol.t_eval, sol.points.astype(float), sol.velocities.astype(float)
         t = np.array([float(x) for x in sol.energy_times])
         p, v = sol(t)
@@ -93,14 +94,17 @@ class ChainMotion:
 
     @property
     def success(self) -> bool:
+        """True if the solve reached ``t_final``."""
         return self.solution.success
 
     @property
     def n_steps(self) -> int:
+        """Accepted integration steps."""
         return self.solution.n_steps
 
     @property
     def n_switches(self) -> int:
+        """Number of chart switches."""
         return self.solution.n_switches
 
     @property
@@ -111,7 +115,10 @@ class ChainMotion:
     @property
     def chart_ids(self) -> list:
         """Readable ids of the charts used, in order (a chart kept across an angle wrap counts once)."""
-        ids = [self.solution.metric.atlas.ids[s.chart] for s in self.solution.segments if s.chart is not None]
+        metric = self.solution.metric
+        if metric is None:  # a method given no atlas integrates in no chart
+            return []
+        ids = [metric.atlas.ids[s.chart] for s in self.solution.segments if s.chart is not None]
         return [c for k, c in enumerate(ids) if k == 0 or c != ids[k - 1]]
 
 
@@ -128,6 +135,7 @@ def free_motion(
     method: str = "charts",
     tangent_tol: float = 1e-9,
     project_velocity: bool = False,
+    progress: ProgressArgument = None,
     **kwargs: Any,
 ) -> ChainMotion:
     """Integrate the chain's force-free motion from ``hinges0`` with hinge velocity ``velocity0``.
@@ -160,6 +168,11 @@ def free_motion(
         Tolerance of the tangency check.
     project_velocity
         Project a non-tangent ``velocity0`` K-orthogonally instead of refusing it.
+    progress
+        ``True`` draws a tqdm bar of the time reached and prints a line per
+        compile (what is compiled, and that heyoka caches it on disk); a
+        callable receives each :class:`manifold.progress.ProgressUpdate`
+        instead.  See :mod:`manifold.progress`.
     **kwargs
         Passed on: to :func:`manifold.solve_chart_exp_ode` for ``"charts"``
         (``stepper``, ``fp_type``, ``tol``, ``q_out``, ``form``, ``dense``,
@@ -172,7 +185,9 @@ def free_motion(
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
     # velocity0 is tangent to tangent_tol (checked above): the solvers' own projection only removes rounding
     if method == "hinges":
-        solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, metric=chain.metric(), **kwargs)
+        solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, metric=chain.metric(), progress=progress,
+                                     **kwargs)
     else:
-        solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, project_velocity=True, **kwargs)
+        solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, project_velocity=True, progress=progress,
+                                       **kwargs)
     return ChainMotion(chain, solution)

@@ -27,6 +27,7 @@ is ``O(2^n)`` (``n <= MAX_RODS``).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -104,7 +105,9 @@ class Topology:
             more = f"; ... ({len(self.collinear) - 4} more)" if len(self.collinear) > 4 else ""
             what = f"singular (not a manifold) at {len(self.collinear)} collinear configuration(s): {confs}{more}"
         else:
+            assert self.betti is not None  # only a singular space has no Betti numbers
             if self.kind == "sphere":
+                assert self.dominant_side is not None  # a sphere has its dominant side
                 shape = f"sphere S^{d}, dominant side {self.side_name(self.dominant_side)}"
             elif self.kind == "tori":
                 names = ", ".join(self.side_name(j) for j in self.long_sides)
@@ -174,7 +177,7 @@ def topology(lengths: ArrayLike, L: float, rtol: float = 1e-12) -> Topology:
     s = sides(ls, L)
     P = float(s.sum())
     half, tol = P / 2, rtol * P
-    base = dict(lengths=tuple(float(v) for v in ls), L=L, dominant_side=None, long_sides=(), collinear=())
+    base: dict[str, Any] = dict(lengths=tuple(float(v) for v in ls), L=L, dominant_side=None, long_sides=(), collinear=())
     excess = float(s.max()) - half
     if excess > tol:
         return Topology("empty", False, 0, (), **base)

@@ -65,7 +65,7 @@ class Atlas:
             raise ValueError(f"switch_threshold must lie in (0, {quality_floor or 1.0:g}) (below the atlas's "
                              f"quality floor), got {switch_threshold!r}")
         self.quality_floor = quality_floor
-        self.charts = charts
+        self.charts: Sequence[Chart] = charts  # read as a sequence: a subclass may narrow the type of its charts
         self.ids = ids
         self.switch_threshold = float(switch_threshold)
         self.dim, self.ambient_dim = dims.pop()
@@ -128,7 +128,9 @@ class Atlas:
             return idx, np.stack([a for _, a in flat]).reshape(*p.shape[:-1], self.dim)
         params, q = self._all_parameters(p)
         i = int(np.argmax(q))
-        return i, params[i]
+        a = params[i]
+        assert a is not None  # a chart without parameters has quality -inf, and some chart has them
+        return i, a
 
     def get_parameters(self, i: int, p: ArrayLike) -> NDArray:
         """Parameters of point ``p`` in chart ``i``."""

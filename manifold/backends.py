@@ -41,9 +41,11 @@ class Cx:
         return Cx(self.re * k, self.im * k)
 
     def conj(self) -> "Cx":
+        """The complex conjugate ``re - i im``."""
         return Cx(self.re, -self.im)
 
     def abs2(self) -> Any:
+        """``|z|^2 = re^2 + im^2`` (no square root, so smooth everywhere)."""
         return self.re * self.re + self.im * self.im
 
 
@@ -132,15 +134,19 @@ class HeyokaOps:
         self._sinc_coeffs = coeffs
 
     def sin(self, x):
+        """``sin x`` as a heyoka expression."""
         return self.hy.sin(x)
 
     def cos(self, x):
+        """``cos x`` as a heyoka expression."""
         return self.hy.cos(x)
 
     def sqrt(self, x):
+        """``sqrt x`` as a heyoka expression."""
         return self.hy.sqrt(x)
 
     def atan2(self, y, x):
+        """``atan2(y, x)``, the argument of ``x + i y`` in ``(-pi, pi]``, as a heyoka expression."""
         return self.hy.atan2(y, x)
 
     def _clip1(self, x):
@@ -148,9 +154,11 @@ class HeyokaOps:
         return hy.select(hy.gt(x, 1.0), hy.expression(1.0), hy.select(hy.lt(x, -1.0), hy.expression(-1.0), x))
 
     def where(self, cond, x, y):
+        """``x`` where ``cond`` holds, else ``y`` (heyoka's ``select``)."""
         return self.hy.select(cond, x, y)
 
     def abs(self, x):
+        """``|x| = select(x < 0, -x, x)``."""
         hy = self.hy
         return hy.select(hy.lt(x, 0.0), -x, x)
 
@@ -165,6 +173,7 @@ class HeyokaOps:
         return 2.0 * h * h
 
     def asin_clipped(self, x):
+        """``asin`` of ``x`` clipped to ``[-1, 1]`` (rounding can push a pole configuration past 1)."""
         return self.hy.asin(self._clip1(x))
 
     def sinc(self, x):
@@ -183,5 +192,6 @@ class HeyokaOps:
         return self.cos(h) * acc
 
     def ratio_or_zero(self, a, b):
+        """``a / b``, and 0 where ``b == 0`` (a collapsed sub-sphere: any value is valid)."""
         hy = self.hy
         return hy.select(hy.eq(b, 0.0), hy.expression(0.0), a / b)

@@ -49,7 +49,7 @@ class CompiledFamily(ArtefactStore):
     """
 
     def __init__(self, family: ChartFamily) -> None:
-        super().__init__()
+        super().__init__(repr(family))
         self.family = family
         self.layout = Layout.of(family)
         self.n_quality = len(self.pieces(float).quality)
@@ -61,7 +61,7 @@ class CompiledFamily(ArtefactStore):
         """The symbolic pieces with constants exact in ``fp_type``."""
         return self._get(("pieces", fp_type), lambda: SymbolicPieces(self.family, fp_type))
 
-    def _cfunc(self, key: Hashable, fp_type: Any, outputs: Callable[[SymbolicPieces], list], inputs: str) -> Any:
+    def _cfunc(self, key: tuple, fp_type: Any, outputs: Callable[[SymbolicPieces], list], inputs: str) -> Any:
         def build() -> Any:
             P = self.pieces(fp_type)
             args = {"a": P.a, "ac": P.a + P.c}[inputs]

@@ -43,7 +43,7 @@ from collections.abc import Hashable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
+from typing import Any, TypeAlias
 
 import heyoka as hy
 import mpmath
@@ -54,6 +54,7 @@ from .artefacts import ArtefactStore
 from .expression_linalg import ldl_solve
 from .metric import InducedMetric
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
+from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import MAX_TOLERANCE, taylor_advance
 from .validation import check_bool, check_real, check_time_grid, real_array
@@ -61,7 +62,7 @@ from .validation import check_bool, check_real, check_time_grid, real_array
 __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "ConstrainedLayout", "ConstrainedSystem",
            "compiled_constrained", "constraint_bound", "default_compact_mode", "solve_constrained", "verdict"]
 
-Expr = hy.expression
+Expr: TypeAlias = hy.expression
 #: How drift off the constraints is held back (see the module docstring).
 STABILISATIONS = ("baumgarte", "projection", "none")
 #: Largest ambient dimension integrated with unrolled (non-compact) code by default; see ``solve_constrained``.
@@ -176,6 +177,7 @@ class ConstrainedLayout:
 
     @classmethod
     def of(cls, system: ConstrainedSystem) -> "ConstrainedLayout":
+        """The layout of ``system``: its parameter count and the nonzero patterns of ``K^{-1}`` (exact) and ``K``."""
         K = np.asarray(system.metric_matrix, dtype=float)
         Ki = _exact_inverse(K)
         N = K.shape[0]
@@ -232,11 +234,11 @@ class ConstrainedPieces:
         Kinv, self.K = layout.matrices(N)
         m = len(self.c)
         # W = K^{-1} G^T (N x m) and M = G W (m x m), keeping structural zeros
-        self.W = [[_sum_or_none([Kinv[i][j] * self.G[k][j] for j in range(N)
-                                 if Kinv[i][j] is not None and self.G[k][j] is not None]) for k in range(m)]
+        self.W = [[_sum_or_none([kij * gkj for kij, gkj in zip(Kinv[i], self.G[k])
+                                 if kij is not None and gkj is not None]) for k in range(m)]
                   for i in range(N)]
-        self.M = [[_sum_or_none([self.G[k][i] * self.W[i][l] for i in range(N)
-                                 if self.G[k][i] is not None and self.W[i][l] is not None]) if l <= k else None
+        self.M = [[_sum_or_none([gki * wil for gki, wil in zip(self.G[k], [row[l] for row in self.W])
+                                 if gki is not None and wil is not None]) if l <= k else None
                    for l in range(m)] for k in range(m)]
 
     def correction(self, r: list[Expr]) -> list[Expr]:
@@ -281,7 +283,7 @@ class CompiledConstrained(ArtefactStore):
     """
 
     def __init__(self, system: ConstrainedSystem, layout: ConstrainedLayout) -> None:
-        super().__init__()
+        super().__init__(repr(system))
         self.system, self.layout = system, layout
 
     def __repr__(self) -> str:
@@ -360,7 +362,7 @@ class CompiledConstrained(ArtefactStore):
             kw = {} if tol is None else {"tol": float(tol)}
             return hy.taylor_adaptive(rows, np.zeros(len(rows)), compact_mode=compact_mode, **kw)
 
-        with self._lend(("tangent integrator", k, tol, compact_mode), build) as ta:
+        with self._lend(("tangent integrator", float, k, tol, compact_mode), build) as ta:
             yield ta
 
     @contextmanager
@@ -373,7 +375,7 @@ class CompiledConstrained(ArtefactStore):
             return hy.taylor_adaptive_batch(P.equations(True), np.zeros((2 * len(P.x), batch_size)),
                                             compact_mode=compact_mode, **kw)
 
-        with self._lend(("batch integrator", batch_size, tol, compact_mode), build) as ta:
+        with self._lend(("batch integrator", float, batch_size, tol, compact_mode), build) as ta:
             yield ta
 
 
@@ -540,6 +542,7 @@ def solve_constrained(
     t_eval: ArrayLike | None = None,
     metric: InducedMetric | None = None,
     throw: bool = True,
+    progress: ProgressArgument = None,
 ) -> GeodesicSolution:
     """Integrate the geodesic of ``system`` from ``(x0, v0)`` with heyoka's Taylor method, in ambient coordinates.
 
@@ -588,6 +591,11 @@ def solve_constrained(
     throw
         Raise :class:`~manifold.solution.GeodesicIntegrationError` with the
         partial solution on failure (default), or return it with ``status`` set.
+    progress
+        Report compiles and the time reached, as in
+        :func:`manifold.solve_chart_exp_ode`: ``True`` (a tqdm bar), a
+        callable taking a :class:`~manifold.progress.ProgressUpdate`,
+        ``False``, or ``None`` (only inside a :func:`manifold.progress.reporting` block).
 
     Returns
     -------
@@ -598,6 +606,7 @@ def solve_constrained(
     """
     wall0 = time.perf_counter()
     fp_type = resolve_fp_type(fp_type)
+    report = as_callback(progress)
     t_final = check_real("t_final", t_final, nonzero=True)
     if tol is not None:
         tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
@@ -620,7 +629,8 @@ def solve_constrained(
 
     comp = compiled_constrained(system)
     t_compile = time.perf_counter()
-    geo = ConstrainedGeometry(system, fp_type)
+    with reporting(report):  # compiles the geometry function
+        geo = ConstrainedGeometry(system, fp_type)
     xs, vs, E0s, alphas = geo.start(x0[None, :], v0[None, :], t_final, rate)
     x, v, E0, alpha = xs[0], vs[0], E0s[0], float(alphas[0])
 
@@ -633,7 +643,8 @@ def solve_constrained(
     ends = [t_final] if stabilisation != "projection" else _chunk_ends(t_final, interval)
     n_grid, project_seconds = 0, 0.0
     t = fp_type(0.0)
-    with comp.integrator(fp_type, tol, stabilisation == "baumgarte", compact_mode) as ta:
+    with solve_progress(report, sol) as reports, comp.integrator(fp_type, tol, stabilisation == "baumgarte",
+                                                                      compact_mode) as ta:
         compile_seconds = time.perf_counter() - t_compile
         pars = comp.layout.pack(system, alpha, fp_type)
         for end in ends:
@@ -647,6 +658,8 @@ def solve_constrained(
             if grid is not None:
                 n_grid = sol.record_grid(grid, n_grid, adv, sign, lambda s: (s[:, :N], s[:, N:]))
             t, x, v = adv.t, adv.y[:N], adv.y[N:]
+            if reports is not None:
+                reports.segment(t, "ambient coordinates")
             drift = float(np.max(np.abs(c.astype(float)))) if c.size else 0.0
             status, message = verdict(sol.energy_violation(recorded, eps, "ambient coordinates"), drift,
                                       sol.n_steps, eps, float(t), adv.failure)
@@ -660,6 +673,8 @@ def solve_constrained(
     sol.final_state = (None, x, v)
     sol.status, sol.message = status, message
     sol.stats = SolverStats(sol.n_steps, 0, 0, compile_seconds, project_seconds, time.perf_counter() - wall0)
+    if reports is not None:
+        reports.done(t, message)
     if status is not SolveStatus.SUCCESS and throw:
         raise GeodesicIntegrationError(message, sol)
     return sol

@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, default_compact_mode, verdict
 from .ensemble import EnsembleSolution, backend_workers, chunk_bounds, default_chunk_size, run_chunks
 from .precision import unit_roundoff
+from .progress import ProgressArgument
 from .solution import energy_violation
 from .steppers import MAX_TOLERANCE
 from .validation import check_bool, check_positive_int, check_real, check_time_grid, real_array
@@ -53,7 +54,7 @@ def solve_constrained_ensemble(
     chunk_size: int | None = None,
     backend: str = "serial",
     client: Any = None,
-    progress: bool = False,
+    progress: ProgressArgument = False,
 ) -> EnsembleSolution:
     """Integrate the geodesics of ``system`` from the rows of ``x0``, ``v0`` (float64, SIMD batches).
 

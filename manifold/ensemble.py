@@ -19,7 +19,8 @@ their order (:func:`run_chunks` for chunks that return an
 Results do not depend on the backend: a chunk computes the same numbers
 wherever it runs.  Dask and tqdm are optional extras
 (``pip install 'linkage-manifolds[distributed]'``); asking for them without
-them installed raises an ``ImportError`` saying so.
+them installed raises an ``ImportError`` saying so.  Progress follows
+:mod:`manifold.progress`: a bar over trajectories, or updates to a callback.
 
 The results of a whole ensemble are one :class:`EnsembleSolution`: end states,
 states on a requested time grid, energy errors and a status per trajectory,
@@ -41,8 +42,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .progress import ProgressArgument, ProgressUpdate, as_callback
 from .solution import GeodesicSolution, SolveStatus
-from .validation import check_bool
 
 __all__ = ["BACKENDS", "EnsembleSolution", "backend_workers", "check_backend", "chunk_bounds", "default_chunk_size",
            "map_chunks", "progress_bar", "run_chunks"]
@@ -137,9 +138,9 @@ class EnsembleSolution:
             sign = 1.0 if t_final > 0 else -1.0
             for k, s in enumerate(solutions):
                 done = int(np.searchsorted(sign * t_eval, sign * float(s.t_reached), side="right"))
-                if s.points is not None and done:
-                    points[k, :done], velocities[k, :done] = s.points[:done].astype(float), \
-                        s.velocities[:done].astype(float)
+                if s.points is not None and s.velocities is not None and done:
+                    points[k, :done] = s.points[:done].astype(float)
+                    velocities[k, :done] = s.velocities[:done].astype(float)
         return cls(
             method=solutions[0].method if solutions else "", t_final=t_final, t_eval=t_eval,
             end_points=np.array([p.astype(float) for p, _ in ends]).reshape(len(ends), -1),
@@ -155,14 +156,15 @@ class EnsembleSolution:
         """The parts (chunks, in order) as one ensemble; ``changes`` set ``backend``, ``wall_seconds``, ..."""
         first = parts[0]
 
-        def stack(name: str) -> NDArray | None:
-            arrays = [getattr(p, name) for p in parts]
-            return None if arrays[0] is None else np.concatenate(arrays)
+        def stack(name: str) -> NDArray:
+            return np.concatenate([getattr(p, name) for p in parts])
 
+        grids = first.points is not None
         whole = cls(first.method, first.t_final, first.t_eval, stack("end_points"), stack("end_velocities"),
                     stack("t_reached"), stack("n_steps"), stack("relative_energy_errors"),
                     [s for p in parts for s in p.status], [m for p in parts for m in p.messages],
-                    stack("points"), stack("velocities"), first.backend, first.batch_size)
+                    stack("points") if grids else None, stack("velocities") if grids else None, first.backend,
+                    first.batch_size)
         return replace(whole, **changes)
 
 
@@ -209,28 +211,47 @@ def backend_workers(backend: str, client: Any = None) -> int:
 
 
 @contextmanager
-def progress_bar(total: int, enabled: bool, unit: str = "trajectories") -> Iterator[Callable[[int], None]]:
-    """Yield ``update(k)`` that advances a tqdm bar by ``k`` of ``total`` (a no-op unless ``enabled``).
+def progress_bar(total: int, progress: ProgressArgument, unit: str = "trajectories") -> Iterator[Callable[[int], None]]:
+    """Yield ``update(k)``: ``k`` more of ``total`` trajectories are done.
 
-    Raises ``ImportError`` naming the extra if ``enabled`` and tqdm is missing.
+    ``progress`` is a :mod:`manifold.progress` argument: ``True`` or ``"tqdm"``
+    draws a tqdm bar over trajectories; a callable (or the callback of an
+    enclosing :func:`manifold.progress.reporting` block, for ``None``)
+    receives a :class:`~manifold.progress.ProgressUpdate` per finished chunk,
+    ``kind="solve"`` with ``t`` the trajectories done of ``t_final = total``
+    (so ``fraction`` is the share done), and ``kind="done"`` at the end;
+    ``False`` reports nothing.  Raises ``ImportError`` naming the extra if a
+    bar is asked for without tqdm.
     """
-    if not check_bool("progress", enabled):
+    if progress is True or (isinstance(progress, str) and progress == "tqdm"):
+        try:
+            import tqdm  # optional: only a bar needs it
+        except ImportError as e:
+            raise ImportError("progress=True draws a tqdm bar, but tqdm is not installed: "
+                              "pip install 'linkage-manifolds[progress]' (or pass a callable progress=f that takes "
+                              "a manifold.progress.ProgressUpdate)") from e
+        bar = tqdm.tqdm(total=total, unit=f" {unit}", dynamic_ncols=True)
+        try:
+            yield bar.update
+        finally:
+            bar.close()
+        return
+    callback = as_callback(progress)
+    if callback is None:
         yield lambda k: None
         return
-    try:
-        from tqdm.auto import tqdm  # optional: only a bar needs it
-    except ImportError as e:
-        raise ImportError("progress=True draws a tqdm bar, but tqdm is not installed: "
-                          "pip install 'linkage-manifolds[progress]'") from e
-    bar = tqdm(total=total, unit=f" {unit}", dynamic_ncols=True)
-    try:
-        yield bar.update
-    finally:
-        bar.close()
+    done = [0]
+
+    def update(k: int) -> None:
+        done[0] += k
+        callback(ProgressUpdate("solve", f"{done[0]} of {total} {unit}", float(done[0]), float(total)))
+
+    yield update
+    callback(ProgressUpdate("done", f"{done[0]} of {total} {unit}", float(done[0]), float(total)))
 
 
 def map_chunks(chunks: Sequence[Callable[[], Any]], sizes: Sequence[int], *, backend: str = "serial",
-               client: Any = None, progress: bool = False) -> list:
+               client: Any = None, progress: ProgressArgument = False) -> list:
     """Run every chunk on ``backend``; return their results in the order of ``chunks``.
 
     Parameters
@@ -245,7 +266,8 @@ def map_chunks(chunks: Sequence[Callable[[], Any]], sizes: Sequence[int], *, bac
     client
         The ``dask.distributed.Client`` for ``"dask"`` (else ``None``).
     progress
-        A tqdm bar over trajectories, advanced as chunks finish.
+        ``True``: a tqdm bar over trajectories, advanced as chunks finish; a
+        callable: :class:`~manifold.progress.ProgressUpdate` s (:func:`progress_bar`).
 
     Raises
     ------
@@ -271,15 +293,15 @@ def map_chunks(chunks: Sequence[Callable[[], Any]], sizes: Sequence[int], *, bac
                     update(sizes[index[f]])
                 return [f.result() for f in futures]
         distributed = _dask()
-        futures = [client.submit(chunk, pure=False) for chunk in chunks]
-        index = {f.key: k for k, f in enumerate(futures)}
-        for f in distributed.as_completed(futures):
-            update(sizes[index[f.key]])
-        return client.gather(futures)
+        submitted = [client.submit(chunk, pure=False) for chunk in chunks]
+        keys = {future.key: k for k, future in enumerate(submitted)}
+        for future in distributed.as_completed(submitted):
+            update(sizes[keys[future.key]])
+        return client.gather(submitted)
 
 
 def run_chunks(chunks: Sequence[Callable[[], EnsembleSolution]], sizes: Sequence[int], *, backend: str = "serial",
-               client: Any = None, progress: bool = False) -> EnsembleSolution:
+               client: Any = None, progress: ProgressArgument = False) -> EnsembleSolution:
     """:func:`map_chunks` for chunks that return :class:`EnsembleSolution` s: one solution, in order,
     with ``backend`` and the ``wall_seconds`` of the whole run."""
     wall0 = time.perf_counter()

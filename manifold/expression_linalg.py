@@ -8,6 +8,7 @@ so Cholesky without pivoting is stable.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import heyoka as hy
 
@@ -21,8 +22,8 @@ def cholesky_solve(g: Matrix, rhs: Sequence[hy.expression]) -> list[hy.expressio
     The pivots ``R_ii`` are kept as reciprocals, computed once.
     """
     k = len(rhs)
-    R = [[None] * k for _ in range(k)]
-    inv_diag = [None] * k
+    R: list[list[Any]] = [[None] * k for _ in range(k)]
+    inv_diag: list[Any] = [None] * k
     for j in range(k):
         s = g[j][j] - hy.sum([R[j][m] * R[j][m] for m in range(j)]) if j else g[j][j]
         R[j][j] = hy.sqrt(s)
@@ -30,11 +31,11 @@ def cholesky_solve(g: Matrix, rhs: Sequence[hy.expression]) -> list[hy.expressio
         for i in range(j + 1, k):
             s = g[i][j] - hy.sum([R[i][m] * R[j][m] for m in range(j)]) if j else g[i][j]
             R[i][j] = s * inv_diag[j]
-    y = [None] * k
+    y: list[Any] = [None] * k
     for i in range(k):
         s = rhs[i] - hy.sum([R[i][m] * y[m] for m in range(i)]) if i else rhs[i]
         y[i] = s * inv_diag[i]
-    x = [None] * k
+    x: list[Any] = [None] * k
     for i in reversed(range(k)):
         later = [R[m][i] * x[m] for m in range(i + 1, k)]
         x[i] = (y[i] - hy.sum(later)) * inv_diag[i] if later else y[i] * inv_diag[i]
@@ -60,8 +61,9 @@ def ldl_solve(M: SparseMatrix, rhs: Sequence[hy.expression]) -> list[hy.expressi
     Stable without pivoting because ``M`` is positive definite.
     """
     k = len(rhs)
-    L: list[list[hy.expression | None]] = [[None] * k for _ in range(k)]
-    LD: list[list[hy.expression | None]] = [[None] * k for _ in range(k)]  # L_im D_m, reused
+    # entries are hy.expression or None; heyoka publishes no types, and mypy cannot narrow L[i][m] by a test
+    L: list[list[Any]] = [[None] * k for _ in range(k)]
+    LD: list[list[Any]] = [[None] * k for _ in range(k)]  # L_im D_m, reused
     inv_D: list[hy.expression] = []
     for j in range(k):
         inv_D.append(1.0 / _minus_sum(M[j][j], [LD[j][m] * L[j][m] for m in range(j) if L[j][m] is not None]))
@@ -74,10 +76,10 @@ def ldl_solve(M: SparseMatrix, rhs: Sequence[hy.expression]) -> list[hy.expressi
     y: list[hy.expression] = []
     for i in range(k):
         y.append(_minus_sum(rhs[i], [L[i][m] * y[m] for m in range(i) if L[i][m] is not None]))
-    x: list[hy.expression | None] = [None] * k
+    x: list[Any] = [None] * k
     for i in reversed(range(k)):
         x[i] = _minus_sum(y[i] * inv_D[i], [L[m][i] * x[m] for m in range(i + 1, k) if L[m][i] is not None])
-    return x  # type: ignore[return-value]
+    return x
 
 
 def _minus_sum(first: "hy.expression | None", terms: list[hy.expression]) -> hy.expression:

@@ -19,6 +19,10 @@ import heyoka as hy
 class ChartFamily(ABC):
     """A family of chart maps ``z(a; theta)`` as heyoka expressions.
 
+    A subclass implements :attr:`key`, :meth:`point_expressions` and
+    :meth:`quality_expressions`, and may implement :meth:`point_jets`.
+    Equality of families is equality of keys: compiled code is cached per key.
+
     Attributes
     ----------
     dim
@@ -34,10 +38,6 @@ class ChartFamily(ABC):
         Indices of ``2 pi``-periodic parameters.  The integrator wraps them into
         ``[-pi, pi]``: heyoka's error control is relative to the state's size,
         so an angle left to grow to ``O(1000)`` would cost three digits.
-
-    A subclass implements :attr:`key`, :meth:`point_expressions` and
-    :meth:`quality_expressions`, and may implement :meth:`point_jets`.
-    Equality of families is equality of keys: compiled code is cached per key.
     """
 
     dim: int

@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from .compiled import compiled
 from .metric import InducedMetric
 from .precision import as_fp, resolve_fp_type
+from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import Stepper, TaylorStepper
 from .symbolic import SymbolicChart
@@ -59,6 +60,7 @@ def solve_chart_exp_ode(
     max_switches: int = 1_000_000,
     chart: int | None = None,
     throw: bool = True,
+    progress: ProgressArgument = None,
 ) -> GeodesicSolution:
     """Integrate the geodesic from point ``p0`` with velocity ``v0`` for ``0 <= t <= t_final``.
 
@@ -110,6 +112,12 @@ def solve_chart_exp_ode(
         If true (default), a solve that does not reach ``t_final`` raises
         :class:`~manifold.solution.GeodesicIntegrationError` carrying the partial
         solution; if false, it returns it with ``status`` saying why.
+    progress
+        Report compiles and the time reached (after every segment, and
+        between them at most every ``manifold.progress.STEP_INTERVAL`` s):
+        ``True`` (a tqdm bar), a callable taking a
+        :class:`~manifold.progress.ProgressUpdate`, ``False``, or ``None``
+        (report only inside a :func:`manifold.progress.reporting` block).
 
     Returns
     -------
@@ -117,6 +125,7 @@ def solve_chart_exp_ode(
     """
     wall0 = time.perf_counter()
     fp_type = resolve_fp_type(fp_type)
+    report = as_callback(progress)
     switching, project_velocity = check_bool("switching", switching), check_bool("project_velocity", project_velocity)
     dense, throw = check_bool("dense", dense), check_bool("throw", throw)
     if isinstance(max_switches, (bool, np.bool_)) or not isinstance(max_switches, numbers.Integral) or max_switches < 1:
@@ -125,8 +134,9 @@ def solve_chart_exp_ode(
         stepper = TaylorStepper(tol)
     elif tol is not None:
         raise ValueError("give tol to the stepper (e.g. TaylorStepper(tol=...)), not beside it")
-    sol, i, a, c, q_event, t_end, grid = _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching,
-                                                project_velocity, tangent_tol, t_eval, chart)
+    with reporting(report):  # the start compiles the transfer and quality functions
+        sol, i, a, c, q_event, t_end, grid = _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching,
+                                                    project_velocity, tangent_tol, t_eval, chart)
     switch_seconds = time.perf_counter() - wall0
     atlas, num, k = metric.atlas, sol.chart_numerics, metric.atlas.dim
     energy_tol = stepper.relative_tolerance(fp_type)
@@ -136,7 +146,8 @@ def solve_chart_exp_ode(
     sign = -1.0 if backward else 1.0
     n_wraps, n_grid, status, message = 0, 0, SolveStatus.SUCCESS, ""
     t0 = time.perf_counter()
-    with stepper.session(family, fp_type, form=form, backward=backward, switching=switching) as advance:
+    with solve_progress(report, sol) as reports, stepper.session(family, fp_type, form=form, backward=backward,
+                                                                   switching=switching) as advance:
         compile_seconds = time.perf_counter() - t0
         t = fp_type(0.0)
         if switching and float(atlas.charts[i].quality(a.astype(float))) < q_event:
@@ -152,6 +163,8 @@ def solve_chart_exp_ode(
             if grid is not None:
                 n_grid = sol.record_grid(grid, n_grid, adv, sign, num[i].point_velocity_states)
             a, c, t = adv.y[:k], adv.y[k:], adv.t
+            if reports is not None:
+                reports.segment(t, f"chart {atlas.ids[i]}")
             if violation is not None:
                 status, message = SolveStatus.ENERGY_CHECK_FAILED, violation
                 break
@@ -178,6 +191,8 @@ def solve_chart_exp_ode(
     sol.status, sol.message = status, message or "reached t_final"
     sol.stats = SolverStats(sol.n_steps, sol.n_switches, n_wraps, compile_seconds, switch_seconds,
                             time.perf_counter() - wall0)
+    if reports is not None:
+        reports.done(t, sol.message)
     if status is not SolveStatus.SUCCESS and throw:
         raise GeodesicIntegrationError(message, sol)
     return sol
@@ -248,11 +263,13 @@ def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_
 
 def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t: Any, q_out: float) -> tuple:
     """Move the state ``(a, c)`` of chart ``i`` to the best chart; log the switch."""
+    assert sol.metric is not None  # the chart solver always makes its solution with the metric
     atlas, num = sol.metric.atlas, sol.chart_numerics
     p, v, _ = num[i].point_velocity_energy(a[:, None], c[:, None])
     p, v = p[0], v[0]
     q_from = float(atlas.charts[i].quality(a.astype(float)))
     j, a_j = atlas.best_chart(p.astype(float))
+    j = int(j)  # one point: one index
     a_j = num[j].polish(as_fp(a_j, sol.fp_type), p)
     q_to = float(atlas.charts[j].quality(a_j.astype(float)))
     if q_to <= q_out:

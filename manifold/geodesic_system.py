@@ -42,14 +42,17 @@ class Layout:
 
     @classmethod
     def of(cls, family: ChartFamily) -> "Layout":
+        """The layout for ``family``: ``family.n_params`` values of ``theta``, ``B`` of size ``point_dim / block``."""
         return cls(family.n_params, family.point_dim // family.block)
 
     @property
     def n_metric(self) -> int:
+        """Entries of ``B`` stored: its upper triangle, ``M (M + 1) / 2`` for ``M = n_points``."""
         return self.n_points * (self.n_points + 1) // 2
 
     @property
     def q_out_index(self) -> int:
+        """Index of ``q_out`` in ``pars``: right after ``theta`` and the upper triangle of ``B``."""
         return self.n_theta + self.n_metric
 
     def metric_pars(self) -> list[list[hy.expression]]:

@@ -109,18 +109,21 @@ class JetOps:
         self.base = base
 
     def sin(self, x: Any) -> Any:
+        """``sin x``; on a jet by the chain rule with ``sin' = cos``, ``sin'' = -sin``."""
         if not isinstance(x, Jet):
             return self.base.sin(x)
         s, c = self.base.sin(x.v), self.base.cos(x.v)
         return x._chain(s, c, -s)
 
     def cos(self, x: Any) -> Any:
+        """``cos x``; on a jet by the chain rule with ``cos' = -sin``, ``cos'' = -cos``."""
         if not isinstance(x, Jet):
             return self.base.cos(x)
         s, c = self.base.sin(x.v), self.base.cos(x.v)
         return x._chain(c, -s, -c)
 
     def sqrt(self, x: Any) -> Any:
+        """``sqrt x``; on a jet with ``r = sqrt x``, ``r' = 1/(2r)``, ``r'' = -r'/(2x)``."""
         if not isinstance(x, Jet):
             return self.base.sqrt(x)
         r = self.base.sqrt(x.v)

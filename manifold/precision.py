@@ -87,6 +87,19 @@ def resolve_fp_type(fp_type):
     return fp_type
 
 
+def fp_name(fp_type) -> str:
+    """The name of a floating type, as :func:`resolve_fp_type` reads it: ``"float64"``, ``"mp256"``, ...
+
+    Raises ``TypeError`` for an unsupported type.
+    """
+    if isinstance(fp_type, MultiPrecision):
+        return f"mp{fp_type.bits}"
+    unit_roundoff(fp_type)  # raises TypeError for anything that is not a supported type
+    if is_double(fp_type):
+        return "float64"
+    return next(name for name, t in FP_NAMES.items() if t is fp_type)
+
+
 def unit_roundoff(fp_type) -> float:
     """``2**-p`` for a ``p``-bit significand: 2**-53 (float), 2**-64 (x86 long double), 2**-113, 2**-bits."""
     if isinstance(fp_type, MultiPrecision):

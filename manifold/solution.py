@@ -113,7 +113,9 @@ class DenseOutput(Protocol):
     def __call__(self, ts: NDArray) -> NDArray: ...
 
     @property
-    def nbytes(self) -> int: ...
+    def nbytes(self) -> int:
+        """Bytes held by the continuous output."""
+        ...
 
 
 class TaylorDense:
@@ -130,6 +132,7 @@ class TaylorDense:
 
     @property
     def nbytes(self) -> int:
+        """Bytes held: the step times and the Taylor coefficients."""
         return int(self.times.nbytes + self.tcs.nbytes)
 
     def __call__(self, ts: NDArray) -> NDArray:
@@ -151,6 +154,7 @@ class CallableDense:
 
     @property
     def nbytes(self) -> int:
+        """Bytes held, estimated as 8 doubles per step and component (DOP853's interpolant)."""
         return self._nbytes
 
     def __call__(self, ts: NDArray) -> NDArray:
@@ -231,6 +235,7 @@ class GeodesicSolution:
 
     @property
     def success(self) -> bool:
+        """True if the solve reached ``t_final`` (``status`` is :attr:`SolveStatus.SUCCESS`)."""
         return self.status is SolveStatus.SUCCESS
 
     @property
@@ -240,10 +245,12 @@ class GeodesicSolution:
 
     @property
     def n_switches(self) -> int:
+        """Number of chart switches (angle wraps are not switches)."""
         return len(self.switches)
 
     @property
     def n_steps(self) -> int:
+        """Accepted steps of the stepper, over all segments."""
         return sum(s.n_steps for s in self.segments)
 
     @property
@@ -284,7 +291,7 @@ class GeodesicSolution:
         if upto <= done or adv.dense is None:
             return done
         p, v = point_velocity(adv.dense(grid[done:upto]))
-        if self.points is None:
+        if self.points is None or self.velocities is None:  # the first grid times: allocate both
             self.points = np.empty((len(grid), p.shape[1]), dtype=p.dtype)
             self.velocities = np.empty_like(self.points)
         self.points[done:upto], self.velocities[done:upto] = p, v
@@ -292,6 +299,8 @@ class GeodesicSolution:
 
     def end_state(self) -> tuple[NDArray, NDArray]:
         """Point and embedded velocity where the solve stopped (available also with ``dense=False``)."""
+        if self.final_state is None:
+            raise ValueError("the solve has not finished: no end state yet")
         i, a, c = self.final_state
         if i is None:
             return a, c

@@ -28,6 +28,7 @@ from scipy.integrate import solve_ivp
 
 from .compiled import CompiledFamily
 from .precision import is_double, unit_roundoff
+from .progress import step_callback
 from .solution import CallableDense, DenseOutput, TaylorDense
 from .validation import check_real
 
@@ -125,7 +126,8 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     n_events = len(ta.t_events) if ta.with_events else 0
     if n_events:
         ta.reset_cooldowns()
-    outcome, _, _, n_steps, cout, *_ = ta.propagate_until(t_final, c_output=dense)
+    # the progress callback (None unless asked) only reads the integrator: results are the same with or without it
+    outcome, _, _, n_steps, cout, *_ = ta.propagate_until(t_final, c_output=dense, callback=step_callback())
     y_end = np.array(ta.state)
     event, failure = None, None
     if outcome != hy.taylor_outcome.time_limit:

@@ -64,8 +64,7 @@ def check_real(name: str, value: object, *, positive: bool = False, nonzero: boo
     scalar = value
     if isinstance(value, np.ndarray) and value.ndim == 0:
         scalar = value[()]  # the numpy scalar of the same dtype
-    is_real = isinstance(scalar, numbers.Real) and not isinstance(scalar, (bool, np.bool_))
-    if not is_real:
+    if not isinstance(scalar, numbers.Real) or isinstance(scalar, (bool, np.bool_)):
         raise ValueError(f"{name} must be {valid}, got {value!r} of type {type(value).__name__}")
     try:
         x = float(scalar)

@@ -219,6 +219,17 @@ def test_progress_bar_counts_trajectories(capsys):
     assert "5/5" in capsys.readouterr().err
 
 
+def test_progress_callback_counts_trajectories():
+    """A callable (manifold.progress protocol) hears each chunk: ``t`` trajectories done of ``t_final = N``."""
+    chain = Chain(4, 2.6)
+    H, V = _starts(chain, 5)
+    updates = []
+    free_motions(chain, H, V, 1.0, progress=updates.append, batch_size=1, chunk_size=2, backend="threads", **FAST)
+    assert [u.kind for u in updates] == ["solve"] * 3 + ["done"]
+    assert sorted(np.diff([0.0] + [u.t for u in updates[:3]])) == [1.0, 2.0, 2.0]  # chunks of 2, 2 and 1
+    assert updates[-1].fraction == 1.0 and updates[-1].t_final == 5.0
+
+
 @pytest.mark.parametrize("module, kwargs, extra", [("distributed", {"backend": "dask", "client": object()}, "distributed"),
                                                    ("tqdm", {"progress": True}, "progress")])
 def test_optional_extras_missing_give_a_clear_error(monkeypatch, module, kwargs, extra):
@@ -227,8 +238,6 @@ def test_optional_extras_missing_give_a_clear_error(monkeypatch, module, kwargs,
     for name in [m for m in sys.modules if m == module or m.startswith(module + ".")]:
         monkeypatch.delitem(sys.modules, name)
     monkeypatch.setitem(sys.modules, module, None)  # import now raises ImportError
-    if module == "tqdm":
-        monkeypatch.setitem(sys.modules, "tqdm.auto", None)
     with pytest.raises(ImportError, match=rf"linkage-manifolds\[{extra}\]"):
         free_motions(chain, H, V, 1.0, **kwargs, **FAST)
 
@@ -242,7 +251,7 @@ def test_optional_extras_missing_give_a_clear_error(monkeypatch, module, kwargs,
     ({"dense": True}, TypeError, "does not take \\['dense'\\]"),
     ({"method": "charts", "batch_size": 4}, ValueError, "SIMD batches run the hinge method"),
     ({"method": "rk4"}, ValueError, "method must be one of"),
-    ({"progress": "yes"}, TypeError, "progress must be True or False"),
+    ({"progress": "yes"}, ValueError, "progress must be None, False, True, 'tqdm' or a callable"),
     ({"t_eval": [0.0, 2.0]}, ValueError, "t_eval must be a 1-d array of times within \\[0, 1\\]"),
 ])
 def test_bad_arguments_are_refused_by_name(change, error, match):

@@ -181,10 +181,12 @@ class ConfigurationCurve:
     # evaluation --------------------------------------------------------------------
     @property
     def n(self) -> int:
+        """Number of joints ``n`` (coordinates ``t_1 .. t_n``)."""
         return len(self.a)
 
     @property
     def is_rational(self) -> bool:
+        """True for a rational curve (no square root ``w = sqrt(g(t))``)."""
         return self.g is None
 
     def expressions(self) -> tuple:
@@ -271,7 +273,7 @@ class ConfigurationCurve:
         if place.t0 != INF and (factor is None or factor.degree() > EXACT_ROOT_DEGREE):
             return None
         t0 = None
-        if place.t0 != INF:
+        if place.t0 != INF and factor is not None:  # a finite place has its factor (checked above)
             t0 = min(sympy.roots(factor.as_expr(), T), key=lambda r: abs(complex(sympy.N(r, 30)) - place.t0))
         gens = [sympy.I] + ([] if t0 is None or _gaussian(t0) else [t0])
         root = None

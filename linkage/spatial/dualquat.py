@@ -136,10 +136,12 @@ class DualQuaternion:
 
     @property
     def primal(self) -> tuple:
+        """The primal part: the coefficients of ``(1, i, j, k)``."""
         return self._c[:4]
 
     @property
     def dual(self) -> tuple:
+        """The dual part: the coefficients of ``(eps, eps i, eps j, eps k)``."""
         return self._c[4:]
 
     def __iter__(self):

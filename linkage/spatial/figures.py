@@ -16,6 +16,7 @@ from .examples import bennett, example_11, example_12, planar_four_bar, spherica
 
 
 def bond_diagrams(path: Path) -> None:
+    """Write the bond diagrams of Examples 1, 2, 3, 11 and 12 side by side to ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -63,6 +64,7 @@ def _frame_axes(ax, chain, frames) -> None:
 
 
 def bennett_poses(path: Path) -> None:
+    """Write eight poses of the Bennett linkage of Example 1 along its real curve to ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -81,6 +83,7 @@ def bennett_poses(path: Path) -> None:
 
 
 def bennett_animation(path: Path, frames: int = 48) -> None:
+    """Write the Bennett linkage moving once around its real curve to ``path`` (a GIF of ``frames`` frames)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -103,6 +106,7 @@ def bennett_animation(path: Path, frames: int = 48) -> None:
 
 
 def main(argv: list[str]) -> None:
+    """The command line: ``argv[0]`` is the output directory (default ``docs/figures``)."""
     out = Path(argv[0]) if argv else Path("docs/figures")
     out.mkdir(parents=True, exist_ok=True)
     bond_diagrams(out / "spatial_bond_diagrams.png")

@@ -65,6 +65,7 @@ class NumericField:
         self.zero, self.one = mpmath.mpc(0), mpmath.mpc(1)
 
     def convert(self, x: Any) -> Any:
+        """``x`` (a number or a sympy expression) as an ``mpmath.mpc`` at the working precision."""
         if type(x) is mpmath.mpc:
             return x
         if isinstance(x, sympy.Basic):
@@ -73,13 +74,16 @@ class NumericField:
         return mpmath.mpc(x)
 
     def first_nonzero(self, coeffs: Sequence[Any]) -> int | None:
+        """Index of the first coefficient above ``ZERO_THRESHOLD`` times the scale of the leading four; ``None`` if none."""
         tol = ZERO_THRESHOLD * max([abs(c) for c in coeffs[:4]] + [mpmath.mpf(1)])
         return next((k for k, c in enumerate(coeffs) if abs(c) > tol), None)
 
     def sqrt(self, x: Any) -> Any:
+        """The principal square root."""
         return mpmath.sqrt(x)
 
     def to_complex(self, x: Any) -> complex:
+        """``x`` rounded to ``complex``."""
         return complex(x)
 
 
@@ -98,6 +102,7 @@ class ExactField:
         self._i = field.from_sympy(sympy.I)
 
     def convert(self, x: Any) -> Any:
+        """``x`` (a number or a sympy expression in ``K``) as an element of the field ``K``."""
         if isinstance(x, type(self.zero)):
             return x
         x = sympy.sympify(x)
@@ -107,9 +112,11 @@ class ExactField:
         return self.field.from_sympy(x)
 
     def first_nonzero(self, coeffs: Sequence[Any]) -> int | None:
+        """Index of the first coefficient that is exactly nonzero; ``None`` if all vanish."""
         return next((k for k, c in enumerate(coeffs) if c != self.zero), None)
 
     def sqrt(self, x: Any) -> Any:
+        """The square root of ``x`` in ``K``; ``ArithmeticError`` if it is not in ``K``."""
         r = sympy.sqrt(self.field.to_sympy(x))
         try:
             return self.field.from_sympy(r)
@@ -117,6 +124,7 @@ class ExactField:
             raise ArithmeticError(f"sqrt({r}) is not in {self.field}") from err
 
     def to_complex(self, x: Any) -> complex:
+        """``x`` rounded to ``complex`` (evaluated to ``WORKING_DIGITS`` first)."""
         return complex(sympy.N(self.field.to_sympy(x), WORKING_DIGITS))
 
 
