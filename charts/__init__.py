@@ -11,6 +11,8 @@ except PackageNotFoundError:  # run from a source tree that was not installed
     __version__ = "0+unknown"
 
 from .chain_geometry import validate_chain
-from .suspension import SuspensionAtlas, SuspensionChart, cyclic_orders
+from .suspension import RoundSphereProposal, SuspensionAtlas, SuspensionChart, cyclic_orders, sphere_parameters
 
-__all__ = ["SuspensionAtlas", "SuspensionChart", "cyclic_orders", "validate_chain"]
+__all__ = [
+    "RoundSphereProposal", "SuspensionAtlas", "SuspensionChart", "cyclic_orders", "sphere_parameters", "validate_chain",
+]

@@ -43,7 +43,7 @@ from manifold.validation import check_real
 
 from .chain import Chain
 
-__all__ = ["ChainSystem", "HingeConstraints", "start_state"]
+__all__ = ["ChainSystem", "HingeConstraints", "start_state", "start_states"]
 
 #: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
 _PROJECTION_STEPS = 8
@@ -83,9 +83,10 @@ class HingeConstraints:
         return f"HingeConstraints(n={self.n}, L={self.L!r})"
 
     def _rods(self, x: NDArray) -> NDArray:
-        """Real rod vectors ``(n, 2)`` of the real hinge vector ``x``."""
-        pts = np.concatenate([[[0.0, 0.0]], x.reshape(-1, 2), [[self.L, 0.0]]])
-        return np.diff(pts, axis=0)
+        """Real rod vectors ``(..., n, 2)`` of real hinge vectors ``x`` ``(..., 2(n-1))``."""
+        hinges = x.reshape(*x.shape[:-1], -1, 2)
+        pins = np.zeros((*x.shape[:-1], 1, 2))
+        return np.diff(np.concatenate([pins, hinges, pins + [self.L, 0.0]], axis=-2), axis=-2)
 
     def _rod_velocities(self, v: NDArray) -> NDArray:
         """``e_k'`` ``(n, 2)``: the pins do not move."""
@@ -116,19 +117,28 @@ class HingeConstraints:
         Parameters
         ----------
         x
-            Real hinge vector, shape ``(2(n-1),)``.
+            Real hinge vector(s), shape ``(..., 2(n-1))``.
 
         Returns
         -------
         numpy.ndarray
-            ``G``, shape ``(n, 2(n-1))``.
+            ``G``, shape ``(..., n, 2(n-1))``.
         """
-        E = 2.0 * self._rods(x) / self.lengths[:, None] ** 2
+        E = 2.0 * self._rods(x) / self.lengths[:, None] ** 2  # (..., n, 2)
         j = np.arange(self.n - 1)
-        G = np.zeros((self.n, self.n - 1, 2))
-        G[j, j] = E[:-1]
-        G[j + 1, j] = -E[1:]
-        return G.reshape(self.n, self.ambient_dim)
+        G = np.zeros((*x.shape[:-1], self.n, self.n - 1, 2))
+        G[..., j, j, :] = E[..., :-1, :]
+        G[..., j + 1, j, :] = -E[..., 1:, :]
+        return G.reshape(*x.shape[:-1], self.n, self.ambient_dim)
+
+    def tangency_residual(self, x: NDArray, v: NDArray) -> NDArray:
+        """``max_k l_k |(G v)_k|`` of hinge vectors and velocities ``(..., 2(n-1))``: 0 for a tangent ``v``.
+
+        ``l_k (G v)_k = 2 e_k . e_k' / l_k`` is twice the rate of change of rod
+        length ``k``, a velocity (for unit rods it is ``(G v)_k`` itself).
+        """
+        Gv = np.einsum("...kj,...j->...k", self.jacobian(x), v)
+        return np.max(self.lengths * np.abs(Gv), axis=-1)
 
     def min_norm_correction(self, G: NDArray, r: NDArray) -> NDArray:
         """The K-smallest ``d`` with ``G d = r``.
@@ -303,7 +313,7 @@ def start_state(
         energy = 0.5 * v0 @ system.K @ v0
     if not np.isfinite(energy):
         raise ValueError(f"velocity0 gives a non-finite kinetic energy (max |velocity0| = {np.max(np.abs(v0)):.3g})")
-    residual = np.max(system.lengths * np.abs(system.jacobian(x0) @ v0))  # 2 |d|e_k|/dt|, a velocity
+    residual = float(system.tangency_residual(x0, v0))
     scale = max(1.0, float(np.linalg.norm(v0)))
     if residual > tangent_tol * scale:
         if not project_velocity:
@@ -314,6 +324,45 @@ def start_state(
             )
         v0 = system.project_velocity(x0, v0)
     return system, x0, v0, t_final
+
+
+def start_states(
+    chain: Chain, hinges0: ArrayLike, velocities0: ArrayLike, t_final: float, tangent_tol: float,
+    project_velocity: bool
+) -> tuple[HingeConstraints, NDArray, NDArray, float]:
+    """:func:`start_state` for many starts at once: rows of ``hinges0`` and ``velocities0``, shape ``(N, n-1)``.
+
+    The checks run on all rows together; a row that fails one (or needs its
+    velocity projected) goes through :func:`start_state` itself, so it gets
+    the same result or the same error, prefixed with ``start k (hinges0[k],
+    velocities0[k])``.
+
+    Returns
+    -------
+    tuple
+        ``(constraints, X0, V0, t_final)`` with real interleaved ``X0``, ``V0`` of shape ``(N, 2(n-1))``.
+    """
+    H = chain.as_hinges(hinges0, "configuration")
+    W = chain.as_hinges(velocities0, "velocity")
+    if H.ndim != 2 or W.shape != H.shape or H.shape[0] == 0:
+        raise ValueError(f"hinges0 and velocities0 must both have shape (N, n - 1) = (N, {chain.n - 1}) with N >= 1, "
+                         f"got {H.shape} and {W.shape}")
+    t_final = check_real("t_final", t_final, nonzero=True)
+    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
+    system = HingeConstraints(chain)
+    X0, V0 = to_real(H).astype(float), to_real(W).astype(float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        energy = 0.5 * np.einsum("ni,ij,nj->n", V0, system.K, V0)
+    chain.check_generic()
+    residual = system.tangency_residual(X0, V0)
+    ok = (chain.closure_residual(H) <= 1e-9) & np.isfinite(energy)
+    ok &= residual <= tangent_tol * np.maximum(1.0, np.linalg.norm(V0, axis=1))
+    for k in np.nonzero(~ok)[0]:
+        try:
+            _, X0[k], V0[k], _ = start_state(chain, H[k], W[k], t_final, tangent_tol, project_velocity)
+        except ValueError as e:
+            raise type(e)(f"start {k} (hinges0[{k}], velocities0[{k}]): {e}") from None
+    return system, X0, V0, t_final
 
 
 class ChainSystem(ConstrainedSystem):

@@ -4,7 +4,9 @@
 (``method="charts"``) and :func:`manifold.constrained.solve_constrained`
 (``method="hinges"``);
 :class:`ChainMotion` shows any method's solution in complex hinges instead of
-interleaved real points.
+interleaved real points.  :func:`free_motions` (many starts at once, on every
+core or a Dask cluster; :mod:`linkage.ensemble`) and :func:`lyapunov_exponent`
+(:mod:`linkage.lyapunov`) are re-exported here.
 """
 
 from __future__ import annotations
@@ -22,6 +24,11 @@ from manifold.progress import ProgressArgument
 
 from .chain import Chain
 from .constraints import ChainSystem, start_state
+from .ensemble import EnsembleMotion, free_motions
+from .lyapunov import lyapunov_exponent, lyapunov_exponents
+
+__all__ = ["METHODS", "ChainMotion", "EnsembleMotion", "free_motion", "free_motions", "lyapunov_exponent",
+           "lyapunov_exponents"]
 
 
 class ChainMotion:

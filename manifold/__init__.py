@@ -17,12 +17,14 @@ from .compiled import ChartNumerics, CompiledFamily, compiled
 from .family import ChartFamily
 from .geodesic_solver import solve_chart_exp_ode
 from .metric import InducedMetric
+from .sampling import BoxProposal, Proposal, VolumeSample, sample_velocities, sample_volume
 from .solution import CallableDense, ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import ScipyStepper, Stepper, TaylorStepper
 from .symbolic import SymbolicChart
 
 __all__ = [
-    "Atlas", "CallableDense", "Chart", "ChartDomainError", "ChartFamily", "ChartNumerics", "ChartSwitch", "CompiledFamily",
-    "GeodesicIntegrationError", "GeodesicSolution", "InducedMetric", "ScipyStepper", "Segment", "SolveStatus",
-    "SolverStats", "Stepper", "SymbolicChart", "TaylorStepper", "compiled", "solve_chart_exp_ode",
+    "Atlas", "BoxProposal", "CallableDense", "Chart", "ChartDomainError", "ChartFamily", "ChartNumerics", "ChartSwitch",
+    "CompiledFamily", "GeodesicIntegrationError", "GeodesicSolution", "InducedMetric", "Proposal", "ScipyStepper",
+    "Segment", "SolveStatus", "SolverStats", "Stepper", "SymbolicChart", "TaylorStepper", "VolumeSample", "compiled",
+    "sample_velocities", "sample_volume", "solve_chart_exp_ode",
 ]

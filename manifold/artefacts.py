@@ -23,7 +23,9 @@ from .progress import compiling
 ARTEFACTS = {"pieces": "the symbolic equations", "transfer": "the chart-transfer function",
              "acceleration": "the acceleration function", "quality": "the chart-quality function",
              "jacobian": "the chart Jacobian", "geometry": "the constraint-geometry function",
-             "integrator": "the Taylor integrator"}
+             "integrator": "the Taylor integrator", "batch integrator": "the SIMD batch Taylor integrator",
+             "tangent integrator": "the Taylor integrator with variational equations",
+             "phase jacobian": "the phase-space constraint Jacobian"}
 
 
 class ArtefactStore:

@@ -98,6 +98,28 @@ class Atlas:
             raise ChartDomainError(f"point {np.asarray(p)} lies in no chart of the atlas: {errors[0]}") from errors[0]
         return params, np.array(q)
 
+    def _batch_parameters(self, p: NDArray) -> tuple[NDArray, NDArray]:
+        """Parameters ``(B, len(atlas), dim)`` (NaN outside a chart) and qualities ``(B, len(atlas))`` of points ``(B, N)``.
+
+        One batched inverse per chart; only if some point lies outside some
+        chart's image (a :class:`ChartDomainError` for the batch) is the batch
+        decided point by point.
+        """
+        try:
+            per_chart = [c.get_parameters(p) for c in self.charts]
+            q = np.stack([c.quality(a) for c, a in zip(self.charts, per_chart)], axis=-1)
+            return np.stack(per_chart, axis=1), q
+        except ChartDomainError:
+            pass
+        out_a = np.full((p.shape[0], len(self.charts), self.dim), np.nan)
+        out_q = np.empty((p.shape[0], len(self.charts)))
+        for b, x in enumerate(p):
+            in_charts, out_q[b] = self._all_parameters(x)
+            for i, a in enumerate(in_charts):
+                if a is not None:
+                    out_a[b, i] = a
+        return out_a, out_q
+
     def qualities(self, p: ArrayLike) -> NDArray:
         """Quality of every chart at point ``p``: shape ``(len(atlas),)``, or ``p.shape[:-1] + (len(atlas),)``.
 
@@ -106,8 +128,7 @@ class Atlas:
         p = self._point(p)
         if p.ndim == 1:
             return self._all_parameters(p)[1]
-        return np.stack([self._all_parameters(x)[1] for x in p.reshape(-1, p.shape[-1])]).reshape(
-            *p.shape[:-1], len(self.charts))
+        return self._batch_parameters(p.reshape(-1, p.shape[-1]))[1].reshape(*p.shape[:-1], len(self.charts))
 
     def get_chart_index(self, p: ArrayLike) -> int | NDArray:
         """Index of the chart of best quality at ``p`` (lowest index on ties); an int array for a batch."""
@@ -118,14 +139,15 @@ class Atlas:
 
         One inverse per chart, where ``get_chart_index`` followed by
         ``get_parameters`` would invert the chosen chart twice.  A batch of
-        points (shape ``(..., ambient_dim)``) is handled point by point and
-        gives arrays of indices ``(...)`` and parameters ``(..., dim)``.
+        points (shape ``(..., ambient_dim)``) gives arrays of indices ``(...)``
+        and parameters ``(..., dim)``, with one batched inverse per chart.
         """
         p = self._point(p)
         if p.ndim > 1:
-            flat = [self.best_chart(x) for x in p.reshape(-1, p.shape[-1])]
-            idx = np.array([i for i, _ in flat]).reshape(p.shape[:-1])
-            return idx, np.stack([a for _, a in flat]).reshape(*p.shape[:-1], self.dim)
+            all_a, all_q = self._batch_parameters(p.reshape(-1, p.shape[-1]))
+            idx = np.argmax(all_q, axis=-1)
+            a = all_a[np.arange(idx.size), idx]
+            return idx.reshape(p.shape[:-1]), a.reshape(*p.shape[:-1], self.dim)
         params, q = self._all_parameters(p)
         i = int(np.argmax(q))
         a = params[i]

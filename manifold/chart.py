@@ -55,6 +55,23 @@ class Chart(ABC):
             raise ChartDomainError(f"{self!r} is singular at parameters {where}: no Jacobian there")
         return J
 
+    def raw_hessian(self, a: ArrayLike) -> NDArray:
+        """``H = d^2 p / da_i da_j``, shape ``(..., ambient_dim, dim, dim)``; non-finite on the singular set.
+
+        Needed for curvature only; the base class has no second derivatives
+        (:class:`~manifold.symbolic.SymbolicChart` derives them from its family).
+        """
+        raise NotImplementedError(f"{type(self).__name__} provides no second derivatives (raw_hessian); curvature needs them")
+
+    def hessian(self, a: ArrayLike) -> NDArray:
+        """``H = d^2 p / da_i da_j``, shape ``(..., ambient_dim, dim, dim)``; :class:`ChartDomainError` where singular."""
+        H = self.raw_hessian(a)
+        bad = ~np.all(np.isfinite(H), axis=(-3, -2, -1))
+        if np.any(bad):
+            where = np.asarray(a)[bad] if np.ndim(bad) else np.asarray(a)
+            raise ChartDomainError(f"{self!r} is singular at parameters {where}: no second derivatives there")
+        return H
+
     @abstractmethod
     def quality(self, a: ArrayLike) -> NDArray:
         """Chart quality in ``[0, 1]``: 0 on the singular set, 1 far from it."""

@@ -3,8 +3,8 @@
 :func:`compiled` returns the :class:`CompiledFamily` of a family.  It owns the
 parameter :class:`~manifold.geodesic_system.Layout`, the symbolic pieces per
 precision, and lazily compiled artefacts: the geodesic Taylor integrator, the
-transfer, acceleration, quality and Jacobian functions.  Charts derive their
-numpy Jacobian and quality from it, and solvers their integrators, so each
+transfer, acceleration, quality, Jacobian and Hessian functions.  Charts derive their
+numpy Jacobian, Hessian and quality from it, and solvers their integrators, so each
 formula exists once.
 
 Thread safety: artefacts are built under a lock; compiled functions are
@@ -97,6 +97,20 @@ class CompiledFamily(ArtefactStore):
         """Compiled ``a -> (z(a), dz/da)``: ``N`` values then the Jacobian row-major (``N x k``)."""
         return self._cfunc(("jacobian", fp_type), fp_type, lambda P: list(P.z) + [x for row in P.J for x in row], "a")
 
+    def hessian(self, fp_type: Any = float) -> Any:
+        """Compiled ``a -> d^2 z / da_i da_j`` for ``i <= j`` (row-major over ``z``, then ``(i, j)``): ``N k (k+1) / 2`` outputs.
+
+        One symbolic differentiation of the Jacobian ``J`` (which a family with
+        :meth:`~manifold.family.ChartFamily.point_jets` has from its jet sweep):
+        the second fundamental form and the curvature need nothing more.
+        """
+        def outputs(P: SymbolicPieces) -> list:
+            k = P.k
+            flat = [x if isinstance(x, hy.expression) else hy.expression(float(x)) for row in P.J for x in row]
+            d = hy.diff_tensors(flat, P.a, diff_order=1).jacobian  # d[r*k + i, j] = z_r,ij
+            return [d[r * k + i, j] for r in range(P.N) for i in range(k) for j in range(i, k)]
+        return self._cfunc(("hessian", fp_type), fp_type, outputs, "a")
+
     @contextmanager
     def integrator(self, fp_type: Any = float, tol: float | None = None, form: str = "embedded",
                    backward: bool = False) -> Iterator[Any]:
@@ -124,6 +138,17 @@ class CompiledFamily(ArtefactStore):
         k, N = self.family.dim, self.family.point_dim
         out = _batched(self.jacobian(float), a, theta)
         return out[..., :N], out[..., N:].reshape(*a.shape[:-1], N, k)
+
+    def evaluate_hessian(self, theta: ArrayLike, a: ArrayLike) -> NDArray:
+        """``d^2 z / da_i da_j`` at parameters ``a``, shape ``(..., N, k, k)``, symmetric (float64, batched)."""
+        a = np.asarray(a, dtype=float)
+        k, N = self.family.dim, self.family.point_dim
+        upper = _batched(self.hessian(float), a, theta).reshape(*a.shape[:-1], N, k * (k + 1) // 2)
+        i, j = np.triu_indices(k)
+        H = np.empty((*a.shape[:-1], N, k, k))
+        H[..., i, j] = upper
+        H[..., j, i] = upper
+        return H
 
     def evaluate_quality(self, theta: ArrayLike, a: ArrayLike) -> NDArray:
         """``min_m quality_m(a)`` (float64, batched); 1 for a global chart."""

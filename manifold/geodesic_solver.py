@@ -31,7 +31,7 @@ from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import Stepper, TaylorStepper
 from .symbolic import SymbolicChart
-from .validation import check_bool, check_index, check_real, real_array
+from .validation import check_bool, check_index, check_real, check_time_grid, real_array
 
 
 #: A start point whose chart parameters give back a point farther than this (times ``max(1, |p0|)``) is refused:
@@ -224,12 +224,7 @@ def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_
         q_out = -2.0
     grid = None
     if t_eval is not None:
-        grid = real_array("t_eval", t_eval)
-        lo, hi = sorted((0.0, t_final))
-        ordered = np.all(np.diff(grid) * (1.0 if t_final >= 0 else -1.0) >= 0)
-        if grid.ndim != 1 or not np.all((grid >= lo) & (grid <= hi)) or not ordered:
-            raise ValueError(f"t_eval must be a 1-d array of times within [0, {t_final:g}] in integration order, "
-                             f"got {t_eval!r}")
+        grid = check_time_grid(t_eval, t_final)
     if chart is not None:
         chart = check_index("chart", chart, len(atlas))
         a0, c0 = _as_vector(p0, "a", atlas.dim), _as_vector(v0, "c", atlas.dim)

@@ -32,6 +32,38 @@ ENERGY_SAFETY = 1000.0
 ENERGY_FLOOR = 1e5
 
 
+def energy_bound(n_steps: int, tol: float) -> float:
+    """The solvers' bound on ``|E - E0| / E0`` after ``n_steps`` steps: ``(ENERGY_SAFETY sqrt(n_steps + 1) + ENERGY_FLOOR) tol``."""
+    return float((ENERGY_SAFETY * np.sqrt(n_steps + 1) + ENERGY_FLOOR) * tol)
+
+
+def energy_violation(deviations: NDArray, times: Any, n_steps: int, tol: float, where: str) -> str | None:
+    """A sentence naming the first energy that breaks :func:`energy_bound`, else ``None``.
+
+    Parameters
+    ----------
+    deviations
+        ``|E_k - E_0| / E_0`` as floats (NaN breaks the bound).
+    times
+        The times of those energies.
+    n_steps
+        Steps taken so far (the bound grows like their square root).
+    tol
+        The stepper's relative tolerance.
+    where
+        The place (a chart, ambient coordinates), for the sentence.
+    """
+    err = np.asarray(deviations, dtype=float)
+    bound = energy_bound(n_steps, tol)
+    bad = ~(err <= bound)  # NaN counts as a violation
+    if not np.any(bad):
+        return None
+    k = int(np.argmax(bad))
+    return (f"energy check failed at t = {float(times[k]):.6g} in {where}: "
+            f"|E - E0| / E0 = {err[k]:.3g} exceeds the bound {bound:.3g} = ({ENERGY_SAFETY:g} sqrt(steps + 1) + "
+            f"{ENERGY_FLOOR:g}) tol (tol = {tol:.3g})")
+
+
 class SolveStatus(enum.Enum):
     """How a solve ended."""
 
@@ -242,21 +274,9 @@ class GeodesicSolution:
         return np.array([float(d) for d in dev])
 
     def energy_violation(self, start: int, tol: float, where: str) -> str | None:
-        """A sentence if an energy recorded since index ``start`` breaks the solvers' bound, else ``None``.
-
-        The bound is ``(ENERGY_SAFETY sqrt(steps + 1) + ENERGY_FLOOR) tol``
-        relative to ``E0``, ``tol`` the stepper's relative tolerance; NaN
-        breaks it.  ``where`` names the place (a chart) in the sentence.
-        """
-        err = self.energy_deviations(start)
-        bound = (ENERGY_SAFETY * np.sqrt(self.n_steps + 1) + ENERGY_FLOOR) * tol
-        bad = ~(err <= bound)  # NaN counts as a violation
-        if not np.any(bad):
-            return None
-        k = int(np.argmax(bad))
-        return (f"energy check failed at t = {float(self.energy_times[start + k]):.6g} in {where}: "
-                f"|E - E0| / E0 = {err[k]:.3g} exceeds the bound {bound:.3g} = ({ENERGY_SAFETY:g} sqrt(steps + 1) + "
-                f"{ENERGY_FLOOR:g}) tol (tol = {tol:.3g})")
+        """A sentence if an energy recorded since index ``start`` breaks the solvers' bound, else ``None``
+        (:func:`energy_violation` on :meth:`energy_deviations` ``(start)``)."""
+        return energy_violation(self.energy_deviations(start), self.energy_times[start:], self.n_steps, tol, where)
 
     def record_grid(self, grid: NDArray, done: int, adv: Any, sign: float,
                     point_velocity: Callable[[NDArray], tuple[NDArray, NDArray]]) -> int:

@@ -60,6 +60,12 @@ class SymbolicChart(Chart):
         _, Jz = compiled(self.family).evaluate_jacobian(self.family_parameters, a)
         return self.linear_map @ Jz
 
+    def raw_hessian(self, a: ArrayLike) -> NDArray:
+        """``M d^2 z / da_i da_j``, shape ``(..., ambient_dim, dim, dim)``; non-finite on the singular set."""
+        a = self.check_parameters(a)
+        H = compiled(self.family).evaluate_hessian(self.family_parameters, a)
+        return np.einsum("rs,...sij->...rij", self.linear_map, H)
+
     def quality(self, a: ArrayLike) -> NDArray:
         """``min_m quality_m(a)`` from the family's quality expressions (1 for a global chart)."""
         a = self.check_parameters(a)

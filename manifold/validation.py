@@ -12,7 +12,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["check_bool", "check_index", "check_real", "real_array"]
+__all__ = ["check_bool", "check_index", "check_positive_int", "check_real", "check_time_grid", "real_array"]
 
 
 def check_real(name: str, value: object, *, positive: bool = False, nonzero: bool = False,
@@ -100,6 +100,13 @@ def check_index(name: str, value: object, size: int) -> int:
     return int(value)
 
 
+def check_positive_int(name: str, value: object) -> int:
+    """Return ``value`` as an ``int >= 1``; ``ValueError`` naming ``name`` for anything else (``bool`` included)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
 def real_array(name: str, value: object, *, finite: bool = True) -> np.ndarray:
     """``value`` as a float64 array; ``TypeError`` for complex, string, boolean or object input.
 
@@ -115,3 +122,18 @@ def real_array(name: str, value: object, *, finite: bool = True) -> np.ndarray:
     if finite and not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite, got {value!r}")
     return arr
+
+
+def check_time_grid(t_eval: object, t_final: float) -> np.ndarray:
+    """``t_eval`` as a 1-d float64 array of times within ``[0, t_final]`` in integration order, or ``ValueError``.
+
+    Integration order is increasing for ``t_final > 0`` and decreasing for
+    ``t_final < 0``; repeated times are allowed.
+    """
+    grid = real_array("t_eval", t_eval)
+    lo, hi = sorted((0.0, t_final))
+    ordered = np.all(np.diff(grid) * (1.0 if t_final >= 0 else -1.0) >= 0)
+    if grid.ndim != 1 or not np.all((grid >= lo) & (grid <= hi)) or not ordered:
+        raise ValueError(f"t_eval must be a 1-d array of times within [0, {t_final:g}] in integration order, "
+                         f"got {t_eval!r}")
+    return grid

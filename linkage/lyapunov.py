@@ -1,0 +1,115 @@
+"""Lyapunov exponents of a chain's free motion, one start or many: :func:`lyapunov_exponent`, :func:`lyapunov_exponents`.
+
+Thin layers over :func:`manifold.lyapunov.lyapunov_spectrum` on the chain's
+rod constraints (:class:`~linkage.constraints.ChainSystem`, hinge
+coordinates: no chart, nothing singular).  Re-exported by :mod:`linkage.motion`.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+from numpy.typing import ArrayLike, NDArray
+
+from manifold.ensemble import backend_workers, chunk_bounds, default_chunk_size, map_chunks
+from manifold.lyapunov import LyapunovResult, lyapunov_spectrum
+from manifold.progress import ProgressArgument
+from manifold.validation import check_positive_int
+
+from .chain import Chain
+from .constraints import ChainSystem, start_state, start_states
+
+__all__ = ["lyapunov_exponent", "lyapunov_exponents"]
+
+
+def lyapunov_exponent(
+    chain: Chain,
+    hinges0: ArrayLike,
+    velocity0: ArrayLike,
+    t_final: float,
+    *,
+    k: int = 1,
+    interval: float = 1.0,
+    deviations: str = "perpendicular",
+    tangent_tol: float = 1e-9,
+    project_velocity: bool = False,
+    **kwargs: Any,
+) -> LyapunovResult:
+    """The maximal finite-time Lyapunov exponent of the chain's free motion from ``hinges0`` (and, with ``k > 1``,
+    the next ones).
+
+    The deviations follow the variational equations of the hinge-coordinate
+    equations of motion, tangent to the phase space of the rod constraints
+    and, by default, perpendicular to the flow and to the energy (where the
+    exponent is 0 and deviations only grow linearly); Benettin's
+    renormalisation every ``interval`` (:mod:`manifold.lyapunov`).  The
+    exponent is in 1/time for the speed of ``velocity0`` (it scales with the
+    speed: use unit kinetic speed, ``v^T K v = 1``, to compare motions).
+
+    Parameters
+    ----------
+    chain
+        The chain.
+    hinges0, velocity0
+        Complex start (closing to ``1e-9``) and tangent hinge velocity (nonzero),
+        checked as in :func:`~linkage.motion.free_motion`.
+    t_final
+        Length of the estimate, ``> 0``.
+    k
+        How many exponents (largest first): up to ``2 (n - 2) - 2`` perpendicular, ``2 (n - 2)`` tangent.
+    interval
+        Time between renormalisations.
+    deviations
+        ``"perpendicular"`` (default) or ``"tangent"`` (the whole tangent space of the phase space).
+    tangent_tol, project_velocity
+        The start checks of :func:`~linkage.motion.free_motion`.
+    **kwargs
+        ``tol``, ``rate``, ``compact_mode``, ``seed``, ``throw`` of :func:`manifold.lyapunov.lyapunov_spectrum`.
+
+    Returns
+    -------
+    manifold.lyapunov.LyapunovResult
+        ``exponent`` (the maximal one), ``exponents``, the convergence
+        ``history`` against ``times`` (``plot()`` draws it) and the trajectory's checks.
+    """
+    _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
+    return lyapunov_spectrum(ChainSystem(chain), x0, v0, t_final, k=k, interval=interval, deviations=deviations,
+                             **kwargs)
+
+
+def lyapunov_exponents(
+    chain: Chain,
+    hinges0: ArrayLike,
+    velocities0: ArrayLike,
+    t_final: float,
+    *,
+    backend: str = "serial",
+    client: Any = None,
+    progress: ProgressArgument = False,
+    chunk_size: int | None = None,
+    tangent_tol: float = 1e-9,
+    project_velocity: bool = False,
+    **kwargs: Any,
+) -> list[LyapunovResult]:
+    """:func:`lyapunov_exponent` for many starts (rows of ``hinges0``, ``velocities0``, shape ``(N, n-1)``),
+    on ``backend`` (``"serial"``, ``"threads"``, ``"dask"`` with ``client``; :mod:`manifold.ensemble`).
+
+    Each start is its own estimate; a trajectory that fails its checks is
+    returned with its ``status`` (``throw=False``) instead of stopping the
+    others.  ``kwargs`` are those of :func:`lyapunov_exponent`.
+    """
+    _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, tangent_tol, project_velocity)
+    size = (default_chunk_size(len(X0), backend_workers(backend, client), 1) if chunk_size is None
+            else check_positive_int("chunk_size", chunk_size))
+    bounds = chunk_bounds(len(X0), size)
+    chunks = [functools.partial(lyapunov_chunk, chain, X0[i:j], V0[i:j], t_final, {"throw": False, **kwargs})
+              for i, j in bounds]
+    parts = map_chunks(chunks, [j - i for i, j in bounds], backend=backend, client=client, progress=progress)
+    return [r for part in parts for r in part]
+
+
+def lyapunov_chunk(chain: Chain, X0: NDArray, V0: NDArray, t_final: float, options: dict) -> list[LyapunovResult]:
+    """One chunk of :func:`lyapunov_exponents`: real interleaved starts (checked there), one estimate each."""
+    system = ChainSystem(chain)
+    return [lyapunov_spectrum(system, x, v, t_final, **options) for x, v in zip(X0, V0)]

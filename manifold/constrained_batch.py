@@ -1,0 +1,215 @@
+"""Many geodesics of one constrained system at once: heyoka's SIMD batch integrators, on any ensemble backend.
+
+:func:`solve_constrained_ensemble` integrates ``N`` starts of one
+:class:`~manifold.constrained.ConstrainedSystem` with the Baumgarte-stabilised
+Taylor method of :func:`~manifold.constrained.solve_constrained`, in float64,
+``batch_size`` trajectories per integrator step (``heyoka.taylor_adaptive_batch``:
+every scalar of the equations becomes a vector of SIMD lanes; each lane keeps
+its own step size, so a lane takes exactly the steps of a single solve).  The
+per-trajectory Baumgarte rate ``alpha`` (it scales with the speed) is a
+per-lane parameter.
+
+Each trajectory starts as a single solve starts
+(:meth:`~manifold.constrained.ConstrainedGeometry.start`) and is judged as a
+single solve is judged (:func:`~manifold.constrained.verdict`): energy and
+``max_k |c_k|`` on the grid and at the end.  A lane whose state turns
+non-finite stops heyoka's batch after the step; its batch is then run again
+without it, so it does not disturb the others.  The chunks of the ensemble run
+on :func:`manifold.ensemble.run_chunks`.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import heyoka as hy
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, default_compact_mode, verdict
+from .ensemble import EnsembleSolution, backend_workers, chunk_bounds, default_chunk_size, run_chunks
+from .precision import unit_roundoff
+from .progress import ProgressArgument
+from .solution import energy_violation
+from .steppers import MAX_TOLERANCE
+from .validation import check_bool, check_positive_int, check_real, check_time_grid, real_array
+
+__all__ = ["solve_constrained_chunk", "solve_constrained_ensemble"]
+
+METHOD = "constrained-taylor batch (baumgarte)"
+
+
+def solve_constrained_ensemble(
+    system: ConstrainedSystem,
+    x0: ArrayLike,
+    v0: ArrayLike,
+    t_final: float,
+    *,
+    tol: float | None = None,
+    rate: float = 1.0,
+    compact_mode: bool | None = None,
+    t_eval: ArrayLike | None = None,
+    batch_size: int | None = None,
+    chunk_size: int | None = None,
+    backend: str = "serial",
+    client: Any = None,
+    progress: ProgressArgument = False,
+) -> EnsembleSolution:
+    """Integrate the geodesics of ``system`` from the rows of ``x0``, ``v0`` (float64, SIMD batches).
+
+    Parameters
+    ----------
+    system
+        The :class:`~manifold.constrained.ConstrainedSystem` (picklable for ``backend="dask"``).
+    x0, v0
+        Starts, shape ``(N, dim)``: each ``x0[k]`` within ``1e-9`` of ``c = 0``
+        (else ``ValueError`` naming ``k``), completed to the constraints as in
+        :func:`~manifold.constrained.solve_constrained`.
+    t_final
+        Final time, finite and nonzero; negative integrates backward.
+    tol
+        heyoka's tolerance in ``(0, 1e-2]``; ``None``: the float64 machine epsilon.
+    rate
+        Baumgarte rate in units of each trajectory's speed scale, ``> 0``.
+    compact_mode
+        heyoka's compact mode (faster compile, slower steps); ``None``: as
+        :func:`~manifold.constrained.solve_constrained` chooses
+        (:func:`~manifold.constrained.default_compact_mode`).
+    t_eval
+        Times (1-d, within ``[0, t_final]``, in integration order) at which
+        states are kept, for every trajectory.
+    batch_size
+        SIMD lanes per integrator, ``>= 1``; ``None``: ``heyoka.recommended_simd_size()``.
+    chunk_size
+        Trajectories per chunk of work (rounded up to whole batches);
+        ``None``: about four chunks per worker of the backend.
+    backend, client, progress
+        Where the chunks run and whether a bar shows it (:func:`manifold.ensemble.run_chunks`).
+
+    Returns
+    -------
+    EnsembleSolution
+        Per trajectory: end state, states on ``t_eval``, energy error (over the
+        grid and the end), steps, status and message.  The numbers do not
+        depend on ``backend``, ``batch_size`` or ``chunk_size``, and agree
+        with single :func:`~manifold.constrained.solve_constrained` calls to rounding.
+    """
+    t_final = check_real("t_final", t_final, nonzero=True)
+    if tol is not None:
+        tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
+    rate = check_real("rate", rate, positive=True)
+    compact_mode = check_bool("compact_mode", default_compact_mode(system, float) if compact_mode is None
+                              else compact_mode)
+    grid = None if t_eval is None else check_time_grid(t_eval, t_final)
+    dim = system.ambient_dim
+    x0, v0 = real_array("x0", x0), real_array("v0", v0)
+    for name, arr in (("x0", x0), ("v0", v0)):
+        if arr.ndim != 2 or arr.shape[1] != dim or arr.shape[0] == 0:
+            raise ValueError(f"{name} must have shape (N, {dim}) with N >= 1 starts, got {arr.shape}")
+    if x0.shape != v0.shape:
+        raise ValueError(f"x0 and v0 must have the same shape, got {x0.shape} and {v0.shape}")
+    lanes = hy.recommended_simd_size() if batch_size is None else check_positive_int("batch_size", batch_size)
+    n = x0.shape[0]
+    size = (default_chunk_size(n, backend_workers(backend, client), lanes) if chunk_size is None
+            else lanes * -(-check_positive_int("chunk_size", chunk_size) // lanes))
+    bounds = chunk_bounds(n, size)
+    chunks = [functools.partial(solve_constrained_chunk, system, x0[i:j], v0[i:j], t_final, grid, tol, rate,
+                                compact_mode, lanes, i) for i, j in bounds]
+    return run_chunks(chunks, [j - i for i, j in bounds], backend=backend, client=client, progress=progress)
+
+
+def _with_ends(grid: NDArray | None, t_final: float) -> tuple[NDArray, NDArray]:
+    """heyoka's grid (strictly monotonic, from 0 to ``t_final``) and where each ``t_eval`` time sits in it.
+
+    Ending the grid at ``t_final`` makes the last step end there, as in a single solve.
+    """
+    times = np.concatenate([[0.0], [] if grid is None else grid, [t_final]])
+    keep = np.concatenate([[True], np.diff(times) != 0])
+    position = np.cumsum(keep) - 1
+    return times[keep], position[1:-1]
+
+
+def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray, t_final: float,
+                            grid: NDArray | None, tol: float | None, rate: float, compact_mode: bool,
+                            batch_size: int, offset: int = 0) -> EnsembleSolution:
+    """One chunk of :func:`solve_constrained_ensemble` (arguments checked there): batches of ``batch_size`` lanes.
+
+    ``offset`` is the index of ``x0[0]`` in the whole ensemble, for messages.
+    """
+    geo = ConstrainedGeometry(system, float)
+    comp = compiled_constrained(system)
+    n, dim = x0.shape
+    X, V, E0, alpha = geo.start(x0, v0, t_final, rate, first_index=offset)
+    E0 = E0.astype(float)
+    pars = np.repeat(comp.layout.pack(system, 0.0, float)[:, None], n, axis=1)
+    pars[0] = alpha  # the Baumgarte rate, per trajectory (layout: par[0])
+    times, position = _with_ends(grid, t_final)
+    states = np.full((n, len(times), 2 * dim), np.nan)
+    ends = np.full((n, 2 * dim), np.nan)
+    steps = np.zeros(n, dtype=int)
+    t_reached = np.zeros(n)
+    failure: list[str | None] = [None] * n
+    with comp.batch_integrator(batch_size, tol, compact_mode) as ta:
+        for i in range(0, n, batch_size):
+            lanes = list(range(i, min(i + batch_size, n)))
+            _run_batch(ta, lanes, X, V, pars, times, states, ends, steps, t_reached, failure)
+    # checked as a single solve checks: the recorded states after the start (grid times reached, then the end)
+    checked = np.concatenate([states[:, 1:], ends[:, None]], axis=1)
+    c, _, _, E = geo(checked[..., :dim].reshape(-1, dim), checked[..., dim:].reshape(-1, dim))
+    deviations = np.abs(E.reshape(n, -1) - E0[:, None]) / E0[:, None]
+    drift = np.max(np.abs(c), axis=1).reshape(n, -1)
+    eps = 2 * unit_roundoff(float) if tol is None else max(tol, 2 * unit_roundoff(float))
+    status, messages = [], []
+    for k in range(n):
+        rows = np.append(np.abs(times[1:]) <= abs(t_reached[k]), True)  # NaN t_reached: only the end
+        s, m = verdict(energy_violation(deviations[k, rows], np.append(times[1:], t_reached[k])[rows],
+                                        int(steps[k]), eps, "ambient coordinates"),
+                       float(np.max(drift[k, rows])), int(steps[k]), eps, float(t_reached[k]), failure[k])
+        status.append(s)
+        messages.append(m)
+    errors = np.array([np.max(deviations[k, np.append(np.abs(times[1:]) <= abs(t_reached[k]), True)])
+                       for k in range(n)])
+    return EnsembleSolution(
+        METHOD, t_final, grid, ends[:, :dim], ends[:, dim:], t_reached, steps, errors, status, messages,
+        None if grid is None else states[:, position, :dim],
+        None if grid is None else states[:, position, dim:], batch_size=batch_size)
+
+
+def _run_batch(ta: Any, lanes: list[int], X: NDArray, V: NDArray, pars: NDArray, times: NDArray, states: NDArray,
+               ends: NDArray, steps: NDArray, t_reached: NDArray, failure: list[str | None]) -> None:
+    """Integrate the trajectories ``lanes`` on the batch integrator ``ta``, filling their rows of the outputs.
+
+    Unused lanes (a short last batch) carry a copy of a live trajectory, whose
+    results are discarded.  A lane that reaches ``t_final`` is done; a lane
+    that reports an error (a non-finite state) has failed; any other lane was
+    stopped by its neighbours and runs again from the start, without the
+    failed ones (the steps of a lane do not depend on the others).  A lane
+    counts as done only at ``t_final``: heyoka reports ``time_limit`` for
+    lanes held at the start by a neighbour that failed in its first step.
+    """
+    B = ta.batch_size
+    live = list(lanes)
+    while live:
+        fill = live + [live[0]] * (B - len(live))
+        ta.set_time(0.0)
+        ta.state[:] = np.concatenate([X[fill].T, V[fill].T])
+        ta.pars[:] = pars[: len(ta.pars), fill]
+        _, out = ta.propagate_grid(np.ascontiguousarray(np.repeat(times[:, None], B, axis=1)))
+        rerun = []
+        for lane, k in enumerate(live):
+            outcome, _, _, steps[k] = ta.propagate_res[lane]
+            t_reached[k] = ta.time[lane]
+            states[k], ends[k] = out[:, :, lane], ta.state[:, lane]
+            if outcome == hy.taylor_outcome.time_limit and t_reached[k] == times[-1]:
+                continue
+            if outcome.name.startswith("err"):
+                failure[k] = str(outcome)
+                states[k, ~(np.abs(times) <= abs(t_reached[k]))] = np.nan  # heyoka never got there
+            else:
+                rerun.append(k)
+        if len(rerun) == len(live):  # nobody failed, nobody finished: nothing would change on a rerun
+            for k in rerun:
+                failure[k] = f"stopped before t_final ({ta.propagate_res[live.index(k)][0]})"
+            return
+        live = rerun

@@ -1,0 +1,263 @@
+"""Finite-time Lyapunov exponents of geodesics of a constrained system, from the variational equations.
+
+The geodesic flow of :mod:`manifold.constrained` lives on the phase space
+``P = {(x, v) : c(x) = 0, G(x) v = 0}`` inside ``R^N x R^N``.  A deviation
+``d = (dx, dv)`` of the state is carried by the variational equations
+``d' = (df/dy) d``, integrated by heyoka alongside the trajectory, ``k``
+deviations at once (:meth:`~manifold.constrained.CompiledConstrained.tangent_integrator`;
+the tests check them against ``heyoka.var_ode_sys``, which builds the whole
+fundamental matrix at five times the cost).  Deviations are kept
+
+* tangent to ``P``: ``G dx = 0`` and ``d(G v)/dx dx + G dv = 0`` (the null
+  space of ``d(c, G v)/d(x, v)``), which the exact flow preserves; the
+  Baumgarte terms of the equations damp any normal part, and each
+  renormalisation projects it away;
+* with ``deviations="perpendicular"`` (default) also ``v^T K dx = 0`` and
+  ``v^T K dv = 0``: perpendicular to the flow direction (``v^T K dx`` is
+  conserved along a geodesic, since the acceleration is normal) and at
+  fixed energy (``v^T K dv = dE``).  The exponents of the flow direction and
+  of the energy direction are 0, but along them a deviation grows linearly
+  (a faster geodesic drifts ahead), which biases a finite-time estimate by
+  ``log(t) / t``; perpendicular deviations leave ``2 (N - m) - 2`` exponents,
+  in pairs ``+-lambda`` (the flow is symplectic).  ``"tangent"`` keeps the
+  whole tangent space of ``P`` (``2 (N - m)`` exponents, two of them 0).
+
+Benettin's method: every ``interval`` the fundamental matrix of the interval
+maps the ``k`` deviations, they are projected, and a QR factorisation (Gram-
+Schmidt) in the norm ``|d|^2 = dx^T K dx + dv^T K dv / s^2`` (``s`` the speed,
+so both halves have the units of length) renormalises them; the running means
+of ``log R_ii`` are the exponent estimates, largest first.  Exponents are in
+units of 1/time and scale with the speed: the geodesic at speed ``s`` is the
+unit-speed one run ``s`` times faster.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import heyoka as hy
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, verdict
+from .precision import unit_roundoff
+from .solution import SolveStatus, energy_violation
+from .steppers import MAX_TOLERANCE
+from .validation import check_bool, check_positive_int, check_real, real_array
+
+__all__ = ["DEVIATIONS", "LyapunovError", "LyapunovResult", "lyapunov_spectrum"]
+
+#: Which deviations are followed (see the module docstring).
+DEVIATIONS = ("perpendicular", "tangent")
+
+
+@dataclass
+class LyapunovResult:
+    """Finite-time Lyapunov exponents of one geodesic and how their estimates converged.
+
+    Attributes
+    ----------
+    exponents
+        The ``k`` estimates at ``t_final``, largest first (1/time).
+    times, history
+        Renormalisation times ``(m,)`` and the running estimates there ``(m, k)``:
+        the convergence of the exponents.
+    deviations
+        ``"perpendicular"`` or ``"tangent"``.
+    interval
+        Time between renormalisations.
+    speed
+        ``sqrt(v^T K v)`` of the geodesic (the exponents scale with it).
+    n_steps
+        Taylor steps taken.
+    relative_energy_error
+        ``max |E - E0| / E0`` over the renormalisation times.
+    status, message
+        Whether the trajectory passed the solvers' energy and constraint checks, and a sentence.
+    """
+
+    exponents: NDArray
+    times: NDArray = field(repr=False)
+    history: NDArray = field(repr=False)
+    deviations: str
+    interval: float
+    speed: float
+    n_steps: int
+    relative_energy_error: float
+    status: SolveStatus
+    message: str
+
+    def __repr__(self) -> str:
+        t = float(self.times[-1]) if len(self.times) else 0.0
+        return (f"LyapunovResult(exponents {np.array2string(self.exponents, precision=4)}, {self.deviations}, "
+                f"t = {t:g}, {self.n_steps} steps, energy error {self.relative_energy_error:.1e}, "
+                f"{self.status.value})")
+
+    @property
+    def exponent(self) -> float:
+        """The maximal finite-time exponent ``lambda_1``."""
+        return float(self.exponents[0])
+
+    @property
+    def success(self) -> bool:
+        return self.status is SolveStatus.SUCCESS
+
+    def plot(self, ax: Any = None, **kwargs: Any) -> Any:
+        """Convergence plot: every exponent estimate against time (matplotlib, imported here).
+
+        Returns the ``Axes`` (a new figure's if ``ax`` is ``None``); ``kwargs`` go to ``ax.plot``.
+        """
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(6, 3.5))
+        for i in range(self.history.shape[1]):
+            ax.plot(self.times, self.history[:, i], label=f"$\\lambda_{i + 1}$", **kwargs)
+        ax.axhline(0.0, color="0.6", lw=0.8)
+        ax.set_xscale("log")
+        ax.set_xlabel("t")
+        ax.set_ylabel("finite-time exponent estimate")
+        ax.legend()
+        return ax
+
+
+class LyapunovError(RuntimeError):
+    """The trajectory under a Lyapunov estimate failed a check; ``result`` holds what was computed."""
+
+    def __init__(self, message: str, result: LyapunovResult) -> None:
+        super().__init__(message)
+        self.result = result
+
+
+def lyapunov_spectrum(
+    system: ConstrainedSystem,
+    x0: ArrayLike,
+    v0: ArrayLike,
+    t_final: float,
+    *,
+    k: int = 1,
+    interval: float = 1.0,
+    deviations: str = "perpendicular",
+    tol: float | None = None,
+    rate: float = 1.0,
+    compact_mode: bool = True,
+    seed: int = 0,
+    throw: bool = True,
+) -> LyapunovResult:
+    """The ``k`` largest finite-time Lyapunov exponents of the geodesic of ``system`` from ``(x0, v0)``.
+
+    Parameters
+    ----------
+    system
+        The :class:`~manifold.constrained.ConstrainedSystem`.
+    x0, v0
+        Start (float64, shape ``(N,)``; ``x0`` within ``1e-9`` of ``c = 0``,
+        ``v0`` tangent, nonzero), completed as in :func:`~manifold.constrained.solve_constrained`.
+    t_final
+        Length of the estimate, ``> 0``.
+    k
+        How many exponents: 1 (the maximal one) up to the dimension of the
+        deviation space, ``2 (N - m) - 2`` (perpendicular) or ``2 (N - m)`` (tangent).
+    interval
+        Time between renormalisations, ``> 0`` (``exp(lambda interval)`` must
+        stay far from overflow; 1 is safe for exponents below 100).
+    deviations
+        ``"perpendicular"`` (default) or ``"tangent"`` (module docstring).
+    tol, rate
+        heyoka's tolerance (``None``: machine epsilon) and the Baumgarte rate,
+        as in :func:`~manifold.constrained.solve_constrained`.
+    compact_mode
+        heyoka's compact mode for the variational system (``k`` times more
+        equations: compact mode compiles it in seconds, once per ``k`` and
+        system; heyoka caches it on disk).
+    seed
+        Seed of the random initial deviations.
+    throw
+        Raise :class:`LyapunovError` if the trajectory fails its energy or
+        constraint check (default), or return the result with ``status`` set.
+
+    Returns
+    -------
+    LyapunovResult
+        The exponents, their convergence history and the checks of the trajectory.
+    """
+    t_final = check_real("t_final", t_final, positive=True)
+    interval = check_real("interval", interval, positive=True)
+    if tol is not None:
+        tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
+    rate = check_real("rate", rate, positive=True)
+    compact_mode, throw = check_bool("compact_mode", compact_mode), check_bool("throw", throw)
+    if deviations not in DEVIATIONS:
+        raise ValueError(f"deviations must be one of {DEVIATIONS}, got {deviations!r}")
+    N, m = system.ambient_dim, system.n_constraints
+    dim = 2 * (N - m) - (2 if deviations == "perpendicular" else 0)
+    k = check_positive_int("k", k)
+    if k > dim:
+        raise ValueError(f"k must be an integer in [1, {dim}] (the {deviations} deviations of this system), got {k}")
+    x0, v0 = real_array("x0", x0), real_array("v0", v0)
+    for name, arr in (("x0", x0), ("v0", v0)):
+        if arr.shape != (N,):
+            raise ValueError(f"{name} must have shape ({N},), got {arr.shape}")
+
+    comp = compiled_constrained(system)
+    geo = ConstrainedGeometry(system, float)
+    X, V, E, alpha = geo.start(x0[None, :], v0[None, :], t_final, rate)
+    x, v, E0 = X[0], V[0], float(E[0])
+    if not E0 > 0:
+        raise ValueError("v0 must be nonzero: a chain at rest has no Lyapunov exponents")
+    K = np.asarray(system.metric_matrix, dtype=float)
+    speed = math.sqrt(2 * E0)
+    # whitening: |S d|^2 = dx^T K dx + dv^T K dv / s^2, so Gram-Schmidt in the plain norm of S d
+    R = np.linalg.cholesky(K).T
+    S = np.block([[R, np.zeros_like(R)], [np.zeros_like(R), R / speed]])
+    S_inv = np.linalg.inv(S)
+    jac = comp.phase_jacobian(float)
+    jac_pars = comp.layout.pack(system, 0.0, float)[: jac.nparams]
+
+    def project(x: NDArray, v: NDArray, Y: NDArray) -> NDArray:
+        """Orthogonal projection (whitened coordinates) onto the deviations allowed at ``(x, v)``."""
+        C = jac(np.concatenate([x, v]), pars=jac_pars).reshape(2 * m, 2 * N)
+        if deviations == "perpendicular":
+            vK = v @ K
+            C = np.vstack([C, np.concatenate([vK, np.zeros(N)]), np.concatenate([np.zeros(N), vK])])
+        Q, _ = np.linalg.qr((C @ S_inv).T)  # the rows of C are independent on P (G has full rank)
+        return Y - Q @ (Q.T @ Y)
+
+    rng = np.random.default_rng(seed)
+    Y, _ = np.linalg.qr(project(x, v, rng.standard_normal((2 * N, k))))
+    n_intervals = max(1, math.ceil(t_final / interval - 1e-9))
+    ends = t_final * np.arange(1, n_intervals + 1) / n_intervals  # no sliver at the end
+    logs, history, times, energies, energy_times = np.zeros(k), [], [], [], []
+    t, n_steps, drift, failure = 0.0, 0, 0.0, None
+    with comp.tangent_integrator(k, tol, compact_mode) as ta:
+        ta.pars[:] = comp.layout.pack(system, float(alpha[0]), float)[: len(ta.pars)]
+        for end in ends:
+            ta.time = t
+            ta.state[:] = np.concatenate([x, v, (S_inv @ Y).T.ravel()])
+            outcome, _, _, steps, *_ = ta.propagate_until(float(end))
+            n_steps += steps
+            y = np.array(ta.state)
+            x, v, t = y[:N], y[N : 2 * N], float(ta.time)
+            c, _, _, Ek = geo(x[None, :], v[None, :])  # checked where it stopped, as a single solve checks
+            energies.append(float(Ek[0]))
+            energy_times.append(t)
+            drift = max(drift, float(np.max(np.abs(c))))
+            if outcome != hy.taylor_outcome.time_limit:
+                failure = str(outcome)
+                break
+            Y, Rk = np.linalg.qr(project(x, v, S @ y[2 * N :].reshape(k, 2 * N).T))
+            logs += np.log(np.abs(np.diag(Rk)))
+            history.append(logs / t)
+            times.append(t)
+    eps = 2 * unit_roundoff(float) if tol is None else max(tol, 2 * unit_roundoff(float))
+    dev = np.abs(np.array(energies) - E0) / E0
+    status, message = verdict(energy_violation(dev, energy_times, n_steps, eps, "ambient coordinates"), drift,
+                              n_steps, eps, t, failure)
+    result = LyapunovResult(history[-1] if history else np.full(k, np.nan), np.array(times),
+                            np.array(history).reshape(-1, k), deviations, interval, speed, n_steps,
+                            float(np.max(dev, initial=0.0)), status, message)
+    if throw and status is not SolveStatus.SUCCESS:
+        raise LyapunovError(message, result)
+    return result
