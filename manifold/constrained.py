@@ -57,7 +57,7 @@ from .metric import InducedMetric
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
-from .steppers import MAX_TOLERANCE, taylor_advance
+from .steppers import MAX_TOLERANCE, taylor_advance, taylor_relative_tolerance
 from .validation import check_bool, check_real, check_time_grid, real_array
 
 __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "ConstrainedLayout", "ConstrainedSystem",
@@ -651,7 +651,7 @@ def solve_constrained(
     sol.t_eval = grid
     sol.energy_times.append(fp_type(0.0))
     sol.energies.append(E0)
-    eps = 2 * unit_roundoff(fp_type) if tol is None else max(tol, 2 * unit_roundoff(fp_type))
+    eps = taylor_relative_tolerance(tol, fp_type)
     sign = float(np.sign(t_final))
     ends = [t_final] if stabilisation != "projection" else _chunk_ends(t_final, interval)
     n_grid, project_seconds = 0, 0.0

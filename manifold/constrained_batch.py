@@ -29,10 +29,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, default_compact_mode, verdict
 from .ensemble import EnsembleSolution, backend_workers, chunk_bounds, default_chunk_size, run_chunks
-from .precision import unit_roundoff
 from .progress import ProgressArgument
 from .solution import energy_violation
-from .steppers import MAX_TOLERANCE
+from .steppers import MAX_TOLERANCE, taylor_relative_tolerance
 from .validation import check_bool, check_positive_int, check_real, check_time_grid, real_array
 
 __all__ = ["solve_constrained_chunk", "solve_constrained_ensemble"]
@@ -159,7 +158,7 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
     c, _, _, E = geo(checked[..., :dim].reshape(-1, dim), checked[..., dim:].reshape(-1, dim))
     deviations = np.abs(E.reshape(n, -1) - E0[:, None]) / E0[:, None]
     drift = np.max(np.abs(c), axis=1).reshape(n, -1)
-    eps = 2 * unit_roundoff(float) if tol is None else max(tol, 2 * unit_roundoff(float))
+    eps = taylor_relative_tolerance(tol, float)
     status, messages = [], []
     for k in range(n):
         rows = np.append(np.abs(times[1:]) <= abs(t_reached[k]), True)  # NaN t_reached: only the end

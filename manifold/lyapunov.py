@@ -42,9 +42,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, verdict
-from .precision import unit_roundoff
 from .solution import SolveStatus, energy_violation
-from .steppers import MAX_TOLERANCE
+from .steppers import MAX_TOLERANCE, taylor_relative_tolerance
 from .validation import check_bool, check_positive_int, check_real, real_array
 
 __all__ = ["DEVIATIONS", "LyapunovError", "LyapunovResult", "lyapunov_spectrum"]
@@ -251,7 +250,7 @@ def lyapunov_spectrum(
             logs += np.log(np.abs(np.diag(Rk)))
             history.append(logs / t)
             times.append(t)
-    eps = 2 * unit_roundoff(float) if tol is None else max(tol, 2 * unit_roundoff(float))
+    eps = taylor_relative_tolerance(tol, float)
     dev = np.abs(np.array(energies) - E0) / E0
     status, message = verdict(energy_violation(dev, energy_times, n_steps, eps, "ambient coordinates"), drift,
                               n_steps, eps, t, failure)

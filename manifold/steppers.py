@@ -101,7 +101,7 @@ class TaylorStepper(Stepper):
         self.tol = None if tol is None else check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
 
     def relative_tolerance(self, fp_type: Any) -> float:
-        return 2 * unit_roundoff(fp_type) if self.tol is None else max(self.tol, 2 * unit_roundoff(fp_type))
+        return taylor_relative_tolerance(self.tol, fp_type)
 
     def __repr__(self) -> str:
         return f"TaylorStepper(tol={self.tol!r})"
@@ -111,6 +111,11 @@ class TaylorStepper(Stepper):
                 switching: bool) -> Iterator[AdvanceFunction]:
         with family.integrator(fp_type, self.tol, form, backward) as ta:
             yield lambda t, y, t_final, pars, dense: taylor_advance(ta, t, y, t_final, pars, dense, fp_type)
+
+
+def taylor_relative_tolerance(tol: float | None, fp_type: Any) -> float:
+    """The relative accuracy a heyoka run at ``tol`` asks of each step: ``tol``, or the machine epsilon if finer or ``None``."""
+    return 2 * unit_roundoff(fp_type) if tol is None else max(tol, 2 * unit_roundoff(fp_type))
 
 
 def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool, fp_type: Any) -> Advance:
