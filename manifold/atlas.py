@@ -15,7 +15,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .chart import Chart, ChartDomainError
+from .symbolic import SymbolicChart, rank_charts
 from .validation import check_index, check_real, real_array
+
+
+#: Charts whose quality at their approximate (unpolished) parameters lies within this of the best chart's are
+#: polished and compared again.  The choice equals the argmax of the polished qualities as long as the polish
+#: moves no competitive quality by half of this: measured up to 5e-5 for the chain with ``L - (n-2) = 1e-12``,
+#: where the fold terms of the quality have gradients ~1/(L - (n-2)), and ~1e-10 elsewhere
+#: (``benchmarks/engine_costs.py``, ``tests/test_chart_choice.py``).
+QUALITY_MARGIN = 1e-3
 
 
 class Atlas:
@@ -83,20 +92,56 @@ class Atlas:
             raise ValueError(f"a point has shape (..., {self.ambient_dim}), got {p.shape}")
         return p
 
-    def _all_parameters(self, p: NDArray) -> tuple[list[NDArray | None], NDArray]:
-        """Parameters and quality of the single point ``p`` in every chart."""
-        params, q, errors = [], [], []
-        for c in self.charts:
+    def _ranked(self, p: NDArray) -> tuple[NDArray, NDArray]:
+        """Every chart's approximate parameters and its quality there for the points ``p`` (``(B, N)``):
+        ``(B, C, dim)`` and ``(B, C)``, ``-inf`` where a chart's image does not contain the point.
+
+        Charts of one family with a compiled closed-form inverse are ranked in
+        one batched call (:func:`~manifold.symbolic.rank_charts`); others chart
+        by chart through :meth:`~manifold.chart.Chart.approximate_parameters`
+        and :meth:`~manifold.chart.Chart.quality`, point by point where a
+        chart refuses part of the batch.
+        """
+        symbolic = all(isinstance(c, SymbolicChart) and hasattr(c, "family") for c in self.charts)
+        ranked = rank_charts(self.charts, self.charts[0].check_point(p)) if symbolic else None
+        if ranked is not None:
+            A, Q = ranked
+            for b in np.nonzero(np.all(Q == -np.inf, axis=1))[0]:
+                raise ChartDomainError(f"point {p[b]} lies in no chart of the atlas: no chart's inverse is finite there")
+            return A, Q
+        B, C = len(p), len(self.charts)
+        A, Q = np.full((B, C, self.dim), np.nan), np.full((B, C), -np.inf)
+        errors: list[list[ChartDomainError]] = [[] for _ in range(B)]
+        for c, chart in enumerate(self.charts):
             try:
-                a = c.get_parameters(p)
-            except ChartDomainError as e:  # p lies outside this chart's image
-                a = None
-                errors.append(e)
-            params.append(a)
-            q.append(-np.inf if a is None else c.quality(a))
-        if len(errors) == len(self.charts):  # e.g. p is not on the manifold: say why, from chart 0
-            raise ChartDomainError(f"point {np.asarray(p)} lies in no chart of the atlas: {errors[0]}") from errors[0]
-        return params, np.array(q)
+                A[:, c] = chart.approximate_parameters(p)
+                Q[:, c] = chart.quality(A[:, c])
+                continue
+            except ChartDomainError:  # some point lies outside this chart's image: find which, point by point
+                pass
+            for b in range(B):
+                try:
+                    A[b, c] = chart.approximate_parameters(p[b])
+                    Q[b, c] = chart.quality(A[b, c])
+                except ChartDomainError as e:
+                    errors[b].append(e)
+        for b in range(B):
+            if len(errors[b]) == C:  # e.g. p is not on the manifold: say why, from chart 0
+                raise ChartDomainError(f"point {p[b]} lies in no chart of the atlas: {errors[b][0]}") from errors[b][0]
+        return A, np.where(np.isnan(Q), -np.inf, Q)  # a NaN quality (0/0 at a chart's pole) never wins
+
+    def _polished(self, p: NDArray, margin: float) -> tuple[NDArray, NDArray]:
+        """Parameters and qualities (``(B, C, dim)``, ``(B, C)``) of the points ``p`` (``(B, N)``) in every chart,
+        polished where the approximate quality lies within ``margin`` of the point's best; ``-inf`` quality elsewhere."""
+        A, Q = self._ranked(p)
+        polish = (Q > -np.inf) & (Q >= Q.max(axis=1, keepdims=True) - margin)
+        for c, chart in enumerate(self.charts):
+            rows = polish[:, c]
+            if rows.any():
+                A[rows, c] = chart.polish_parameters(A[rows, c], p[rows])
+                Q[rows, c] = chart.quality(A[rows, c])
+        Q[~polish] = -np.inf
+        return A, Q
 
     def qualities(self, p: ArrayLike) -> NDArray:
         """Quality of every chart at point ``p``: shape ``(len(atlas),)``, or ``p.shape[:-1] + (len(atlas),)``.
@@ -104,10 +149,8 @@ class Atlas:
         ``-inf`` for a chart whose image does not contain ``p``.
         """
         p = self._point(p)
-        if p.ndim == 1:
-            return self._all_parameters(p)[1]
-        return np.stack([self._all_parameters(x)[1] for x in p.reshape(-1, p.shape[-1])]).reshape(
-            *p.shape[:-1], len(self.charts))
+        flat = p.reshape(-1, self.ambient_dim)
+        return self._polished(flat, np.inf)[1].reshape(*p.shape[:-1], len(self.charts))
 
     def get_chart_index(self, p: ArrayLike) -> int | NDArray:
         """Index of the chart of best quality at ``p`` (lowest index on ties); an int array for a batch."""
@@ -116,19 +159,30 @@ class Atlas:
     def best_chart(self, p: ArrayLike) -> tuple[int | NDArray, NDArray]:
         """``(i, a)``: the index ``get_chart_index(p)`` and the parameters of ``p`` in that chart.
 
-        One inverse per chart, where ``get_chart_index`` followed by
-        ``get_parameters`` would invert the chosen chart twice.  A batch of
-        points (shape ``(..., ambient_dim)``) is handled point by point and
-        gives arrays of indices ``(...)`` and parameters ``(..., dim)``.
+        A batch of points (shape ``(..., ambient_dim)``) gives arrays of
+        indices ``(...)`` and parameters ``(..., dim)``.  See :meth:`chart_choice`.
+        """
+        return self.chart_choice(p)[:2]
+
+    def chart_choice(self, p: ArrayLike) -> tuple[int | NDArray, NDArray, float | NDArray]:
+        """``(i, a, q)``: the chart of best quality at ``p``, the parameters of ``p`` in it and its quality.
+
+        Equal to the argmax over all charts of ``quality(get_parameters(p))``
+        (lowest index on ties), computed cheaply: every chart's quality at its
+        :meth:`~manifold.chart.Chart.approximate_parameters` (for charts of one
+        family with a closed-form inverse, all charts and points in one compiled
+        call: :func:`~manifold.symbolic.rank_charts`), then the polish only for
+        the charts within :data:`QUALITY_MARGIN` of the best, compared again.
         """
         p = self._point(p)
-        if p.ndim > 1:
-            flat = [self.best_chart(x) for x in p.reshape(-1, p.shape[-1])]
-            idx = np.array([i for i, _ in flat]).reshape(p.shape[:-1])
-            return idx, np.stack([a for _, a in flat]).reshape(*p.shape[:-1], self.dim)
-        params, q = self._all_parameters(p)
-        i = int(np.argmax(q))
-        return i, params[i]
+        flat = p.reshape(-1, self.ambient_dim)
+        A, Q = self._polished(flat, QUALITY_MARGIN)
+        idx = np.argmax(Q, axis=1)
+        rows = np.arange(len(flat))
+        a, q = A[rows, idx], Q[rows, idx]
+        if p.ndim == 1:
+            return int(idx[0]), a[0], float(q[0])
+        return idx.reshape(p.shape[:-1]), a.reshape(*p.shape[:-1], self.dim), q.reshape(p.shape[:-1])
 
     def get_parameters(self, i: int, p: ArrayLike) -> NDArray:
         """Parameters of point ``p`` in chart ``i``."""

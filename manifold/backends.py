@@ -62,6 +62,8 @@ class NumpyOps:
 
     where = staticmethod(np.where)
     abs = staticmethod(np.abs)
+    gt = staticmethod(np.greater)
+    ge = staticmethod(np.greater_equal)
 
     @staticmethod
     def one_minus_sin(x):
@@ -149,6 +151,14 @@ class HeyokaOps:
 
     def where(self, cond, x, y):
         return self.hy.select(cond, x, y)
+
+    def gt(self, x, y):
+        """``x > y`` as a heyoka condition (expressions have no comparison operators)."""
+        return self.hy.gt(x, y)
+
+    def ge(self, x, y):
+        """``x >= y`` as a heyoka condition."""
+        return self.hy.gte(x, y)
 
     def abs(self, x):
         hy = self.hy

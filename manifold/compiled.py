@@ -3,7 +3,7 @@
 :func:`compiled` returns the :class:`CompiledFamily` of a family.  It owns the
 parameter :class:`~manifold.geodesic_system.Layout`, the symbolic pieces per
 precision, and lazily compiled artefacts: the geodesic Taylor integrator, the
-transfer, acceleration, quality and Jacobian functions.  Charts derive their
+transfer, acceleration, quality, point, Jacobian and inverse functions.  Charts derive their
 numpy Jacobian and quality from it, and solvers their integrators, so each
 formula exists once.
 
@@ -120,6 +120,26 @@ class CompiledFamily:
         """Compiled ``a -> (z(a), dz/da)``: ``N`` values then the Jacobian row-major (``N x k``)."""
         return self._cfunc(("jacobian", fp_type), fp_type, lambda P: list(P.z) + [x for row in P.J for x in row], "a")
 
+    def inverse(self, fp_type: Any = float) -> Any:
+        """Compiled ``z -> (a(z), quality_1(a(z)), ...)`` from the family's closed-form inverse; ``None`` without one.
+
+        One evaluation ranks a chart at a point: its approximate parameters and
+        its quality there, with no Jacobian and no polish.
+        """
+        def build() -> Any:
+            z = [hy.expression(f"z{r}") for r in range(self.family.point_dim)]
+            a = self.family.inverse_expressions(z, fp_type)
+            if a is None:
+                return None
+            outs = [x if isinstance(x, hy.expression) else hy.expression(float(x))
+                    for x in list(a) + list(self.family.quality_expressions(a))]
+            return hy.cfunc(outs, z, compact_mode=True, **heyoka_fp_kwargs(fp_type))
+        return self._get(("inverse", fp_type), build)
+
+    def point(self, fp_type: Any = float) -> Any:
+        """Compiled ``a -> z(a)``: the chart map alone (no Jacobian to compute and throw away)."""
+        return self._cfunc(("point", fp_type), fp_type, lambda P: list(P.z), "a")
+
     @contextmanager
     def integrator(self, fp_type: Any = float, tol: float | None = None, form: str = "embedded",
                    backward: bool = False) -> Iterator[Any]:
@@ -150,6 +170,23 @@ class CompiledFamily:
             with self._lock:
                 self._pools.setdefault(key, []).append(ta)
 
+    def evaluate_inverse(self, theta: ArrayLike, z: ArrayLike) -> tuple[NDArray, NDArray]:
+        """Approximate parameters ``a(z)`` (``(..., k)``) and the quality there (``(...)``), float64, batched.
+
+        ``theta`` has shape ``(n_params,)`` or ``(..., n_params)``; requires
+        :meth:`~manifold.family.ChartFamily.inverse_expressions`.
+        """
+        z = np.asarray(z, dtype=float)
+        out = _batched(self.inverse(float), z, theta)
+        k = self.family.dim
+        q = np.min(out[..., k:], axis=-1) if self.n_quality else np.ones(z.shape[:-1])
+        return out[..., :k], q
+
+    def evaluate_point(self, theta: ArrayLike, a: ArrayLike) -> NDArray:
+        """``z`` (``(..., N)``) at parameters ``a`` (float64, batched; ``theta`` of shape ``(..., n_params)``)."""
+        a = np.asarray(a, dtype=float)
+        return _batched(self.point(float), a, theta)
+
     def evaluate_jacobian(self, theta: ArrayLike, a: ArrayLike) -> tuple[NDArray, NDArray]:
         """``z`` (``(..., N)``) and ``dz/da`` (``(..., N, k)``) at parameters ``a`` (float64, batched)."""
         a = np.asarray(a, dtype=float)
@@ -158,7 +195,7 @@ class CompiledFamily:
         return out[..., :N], out[..., N:].reshape(*a.shape[:-1], N, k)
 
     def evaluate_quality(self, theta: ArrayLike, a: ArrayLike) -> NDArray:
-        """``min_m quality_m(a)`` (float64, batched); 1 for a global chart."""
+        """``min_m quality_m(a)`` (float64, batched; ``theta`` broadcast against ``a``'s leading axes); 1 for a global chart."""
         a = np.asarray(a, dtype=float)
         cf = self.quality(float)
         if cf is None:
@@ -167,10 +204,16 @@ class CompiledFamily:
 
 
 def _batched(cf: Any, a: NDArray, theta: ArrayLike) -> NDArray:
-    """Evaluate a float64 cfunc of ``a`` over the leading axes of ``a`` (shape ``(..., k)``)."""
+    """Evaluate a float64 cfunc of ``a`` over the leading axes of ``a`` (shape ``(..., k)``).
+
+    ``theta`` (shape ``(n_params,)``, or ``(..., n_params)`` broadcast against
+    those axes) gives the runtime parameters of each evaluation.
+    """
+    lead = a.shape[:-1]
     flat = np.ascontiguousarray(a.reshape(-1, a.shape[-1]).T)
-    pars = np.repeat(np.asarray(theta, dtype=float)[: cf.nparams, None], flat.shape[1], axis=1)
-    return cf(flat, pars=pars).T.reshape(*a.shape[:-1], -1)
+    theta = np.asarray(theta, dtype=float)[..., : cf.nparams]
+    pars = np.broadcast_to(theta, (*lead, theta.shape[-1])).reshape(flat.shape[1], theta.shape[-1]).T
+    return cf(flat, pars=np.ascontiguousarray(pars)).T.reshape(*lead, -1)
 
 
 _REGISTRY: dict[Hashable, CompiledFamily] = {}

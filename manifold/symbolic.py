@@ -12,12 +12,13 @@ share one compiled integrator; ``theta`` and the pulled-back ambient metric
 from __future__ import annotations
 
 from abc import abstractmethod
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .chart import Chart
+from .chart import Chart, ChartDomainError
 from .compiled import ChartNumerics, compiled
 from .family import ChartFamily
 from .validation import real_array
@@ -41,6 +42,23 @@ class SymbolicChart(Chart):
     def offset(self, fp_type: Any = float) -> NDArray:
         """The constant ``m`` of ``p = M z + m``, in ``fp_type``."""
 
+    def check_point(self, p: ArrayLike) -> NDArray:
+        """``p`` as a float array of shape ``(..., ambient_dim)``; subclasses add their checks that ``p`` lies on
+        the manifold (:class:`~manifold.chart.ChartDomainError`).  Charts of one family share the manifold, so
+        one chart's check serves them all (:func:`rank_charts`)."""
+        p = real_array("p", p, finite=False)
+        if p.ndim == 0 or p.shape[-1] != self.ambient_dim:
+            raise ChartDomainError(f"a point has shape (..., {self.ambient_dim}), got {p.shape}")
+        return p
+
+    def approximate_parameters(self, p: ArrayLike) -> NDArray:
+        """The family's compiled closed-form inverse at ``z = M^{-1} (p - m)`` (:meth:`get_parameters` without one)."""
+        if compiled(self.family).inverse(float) is None:
+            return self.get_parameters(p)
+        p = self.check_point(p)
+        A, _ = rank_charts([self], p.reshape(-1, self.ambient_dim))
+        return A[:, 0].reshape(*p.shape[:-1], self.dim)
+
     def check_parameters(self, a: ArrayLike) -> NDArray:
         """``a`` as a float array of shape ``(..., dim)``; subclasses add their domain checks."""
         a = real_array("chart parameters", a, finite=False)
@@ -51,8 +69,21 @@ class SymbolicChart(Chart):
     def get_point(self, a: ArrayLike) -> NDArray:
         """``p = M z(a) + m``, shape ``(..., ambient_dim)``."""
         a = self.check_parameters(a)
-        z, _ = compiled(self.family).evaluate_jacobian(self.family_parameters, a)
-        return z @ self.linear_map.T + self.offset()
+        z = compiled(self.family).evaluate_point(self.family_parameters, a)
+        return z @ self.linear_map.T + self.float_offset()
+
+    def float_offset(self) -> NDArray:
+        """``offset(float)``, computed once (read-only)."""
+        if "_float_offset" not in self.__dict__:
+            self._float_offset = self.offset(float)
+            self._float_offset.flags.writeable = False
+        return self._float_offset
+
+    def point_and_jacobian(self, a: ArrayLike) -> tuple[NDArray, NDArray]:
+        """``get_point(a)`` and ``raw_jacobian(a)`` from one evaluation of the compiled Jacobian."""
+        a = self.check_parameters(a)
+        z, Jz = compiled(self.family).evaluate_jacobian(self.family_parameters, a)
+        return z @ self.linear_map.T + self.float_offset(), self.linear_map @ Jz
 
     def raw_jacobian(self, a: ArrayLike) -> NDArray:
         """``M dz/da``, shape ``(..., ambient_dim, dim)``; non-finite on the singular set."""
@@ -66,9 +97,12 @@ class SymbolicChart(Chart):
         return compiled(self.family).evaluate_quality(self.family_parameters, a)
 
     def inverse_linear_map(self) -> NDArray:
-        """``M^{-1}``, rounded to integers when it is an integer matrix (as for rod relabelings)."""
-        inv = np.linalg.inv(self.linear_map)
-        return np.rint(inv) if np.allclose(inv, np.rint(inv), rtol=0, atol=1e-12) else inv
+        """``M^{-1}``, rounded to integers when it is an integer matrix (as for rod relabelings); computed once (read-only)."""
+        if "_inverse_linear_map" not in self.__dict__:
+            inv = np.linalg.inv(self.linear_map)
+            self._inverse_linear_map = np.rint(inv) if np.allclose(inv, np.rint(inv), rtol=0, atol=1e-12) else inv
+            self._inverse_linear_map.flags.writeable = False
+        return self._inverse_linear_map
 
     def core_metric(self, K: NDArray) -> NDArray:
         """``B`` with ``M^T K M = B (x) I_block``: the metric seen by the family's ``z``.
@@ -85,3 +119,26 @@ class SymbolicChart(Chart):
     def numerics(self, K: NDArray, q_out: float, fp_type: Any = float) -> ChartNumerics:
         """This chart in the working precision ``fp_type`` for the ambient metric ``K`` (see :class:`ChartNumerics`)."""
         return ChartNumerics(self, K, q_out, fp_type)
+
+
+def rank_charts(charts: Sequence[SymbolicChart], p: NDArray) -> tuple[NDArray, NDArray] | None:
+    """Approximate parameters and quality of the points ``p`` (``(B, N)``, checked) in every chart: one compiled call.
+
+    For charts of one family with a closed-form inverse
+    (:meth:`~manifold.family.ChartFamily.inverse_expressions`): chart ``c``
+    sees ``z_c = M_c^{-1} (p - m_c)``, and the family's compiled inverse gives
+    its parameters ``a_c(z_c)`` and its quality at them, all ``B x C`` pairs in
+    one batched evaluation.  Returns ``A`` (``(B, C, dim)``) and ``Q``
+    (``(B, C)``; ``-inf`` where a chart's inverse is not finite: the point
+    lies outside its image), or ``None`` if the family has no inverse.
+    """
+    family = compiled(charts[0].family)
+    if family.inverse(float) is None:
+        return None
+    inv = np.stack([c.inverse_linear_map() for c in charts])  # (C, N, N)
+    offsets = np.stack([c.float_offset() for c in charts])  # (C, N)
+    z = np.einsum("cij,bcj->bci", inv, p[:, None, :] - offsets)
+    theta = np.stack([np.asarray(c.family_parameters, dtype=float) for c in charts])  # (C, n_params)
+    A, Q = family.evaluate_inverse(theta, z)
+    inside = np.all(np.isfinite(A), axis=-1) & np.isfinite(Q)
+    return A, np.where(inside, Q, -np.inf)
