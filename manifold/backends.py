@@ -129,9 +129,9 @@ class HeyokaOps:
         self.fp_type = fp_type
         coeffs, c = [], fp_type(1)
         for k in range(_sinc_terms(fp_type)):
-            coeffs.append(self.hy.expression(c))
+            coeffs.append(c)
             c = -c / fp_type((2 * k + 2) * (2 * k + 3))  # (-1)^k / (2k+1)!, rounded in fp_type
-        self._sinc_coeffs = coeffs
+        self.sinc_coefficients = tuple(coeffs)
 
     def sin(self, x):
         return self.hy.sin(x)
@@ -186,11 +186,14 @@ class HeyokaOps:
         ``[0, pi]``) shortens the series needed for ``fp_type`` by a fifth.
         """
         h = x / 2.0
-        y = h * h
-        acc = self._sinc_coeffs[-1]
-        for c in reversed(self._sinc_coeffs[:-1]):
-            acc = c + y * acc
-        return self.cos(h) * acc
+        return self.cos(h) * self.polynomial(self.sinc_coefficients, h * h)
+
+    def polynomial(self, coeffs, y):
+        """``sum_k coeffs[k] y^k`` in Horner form; ``coeffs`` are numbers of ``fp_type``."""
+        acc = self.hy.expression(coeffs[-1])
+        for c in reversed(coeffs[:-1]):
+            acc = self.hy.expression(c) + y * acc
+        return acc
 
     def ratio_or_zero(self, a, b):
         hy = self.hy
