@@ -142,21 +142,24 @@ class CompiledFamily:
 
     @contextmanager
     def integrator(self, fp_type: Any = float, tol: float | None = None, form: str = "embedded",
-                   backward: bool = False) -> Iterator[Any]:
-        """Lend a Taylor integrator (compact mode) of the geodesics with switch events; return it after use.
+                   backward: bool = False, compact_mode: bool = True, opt_level: int = 3) -> Iterator[Any]:
+        """Lend a Taylor integrator of the geodesics with switch events; return it after use.
 
         The caller owns it inside the ``with`` block: set ``state``, ``time``
         and ``pars`` (``Layout.pack(...)[:len(ta.pars)]``) before each use.
         ``tol=None`` is heyoka's default, the machine epsilon of ``fp_type``.
         ``backward=True`` mirrors the event directions for negative times.
+        ``compact_mode`` and ``opt_level`` (LLVM's optimisation level, 0..3)
+        are heyoka's compile options; each combination is a separate integrator.
         """
-        key = ("integrator", fp_type, tol, form, backward)
+        key = ("integrator", fp_type, tol, form, backward, compact_mode, opt_level)
 
         def build() -> Any:
             P = self.pieces(fp_type)
             kw = {} if tol is None else {"tol": fp_type(tol)}
-            return hy.taylor_adaptive(P.equations(form), as_fp(np.zeros(2 * P.k), fp_type), compact_mode=True,
-                                      t_events=P.events(backward), **kw, **heyoka_fp_kwargs(fp_type))
+            return hy.taylor_adaptive(P.equations(form), as_fp(np.zeros(2 * P.k), fp_type), compact_mode=compact_mode,
+                                      opt_level=opt_level, t_events=P.events(backward), **kw,
+                                      **heyoka_fp_kwargs(fp_type))
 
         template = self._get(key, build)
         with self._lock:

@@ -29,7 +29,7 @@ from scipy.integrate import solve_ivp
 from .compiled import CompiledFamily
 from .precision import is_double, unit_roundoff
 from .solution import CallableDense, DenseOutput, TaylorDense
-from .validation import check_real
+from .validation import check_bool, check_index, check_real
 
 #: Largest accepted tolerance: looser runs are not geodesics (``tol = 1`` gave a 21 % energy error).
 MAX_TOLERANCE = 1e-2
@@ -92,23 +92,28 @@ class TaylorStepper(Stepper):
     ----------
     tol
         heyoka's tolerance; ``None`` is its default, the machine epsilon of ``fp_type``.
+    compact_mode, opt_level
+        heyoka's compile options: compact mode (a loop over the decomposition
+        instead of straight-line code) and LLVM's optimisation level, 0 to 3.
     """
 
     name = "taylor"
 
-    def __init__(self, tol: float | None = None) -> None:
+    def __init__(self, tol: float | None = None, *, compact_mode: bool = True, opt_level: int = 3) -> None:
         self.tol = None if tol is None else check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
+        self.compact_mode = check_bool("compact_mode", compact_mode)
+        self.opt_level = check_index("opt_level", opt_level, 4)
 
     def relative_tolerance(self, fp_type: Any) -> float:
         return 2 * unit_roundoff(fp_type) if self.tol is None else max(self.tol, 2 * unit_roundoff(fp_type))
 
     def __repr__(self) -> str:
-        return f"TaylorStepper(tol={self.tol!r})"
+        return f"TaylorStepper(tol={self.tol!r}, compact_mode={self.compact_mode}, opt_level={self.opt_level})"
 
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
                 switching: bool) -> Iterator[AdvanceFunction]:
-        with family.integrator(fp_type, self.tol, form, backward) as ta:
+        with family.integrator(fp_type, self.tol, form, backward, self.compact_mode, self.opt_level) as ta:
             n_events = len(ta.t_events) if ta.with_events else 0
 
             def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
