@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .chart import Chart, ChartDomainError
-from .symbolic import SymbolicChart, rank_charts
+from .symbolic import SymbolicChart, chart_ranking
 from .validation import check_index, check_real, real_array
 
 
@@ -97,15 +97,16 @@ class Atlas:
         ``(B, C, dim)`` and ``(B, C)``, ``-inf`` where a chart's image does not contain the point.
 
         Charts of one family with a compiled closed-form inverse are ranked in
-        one batched call (:func:`~manifold.symbolic.rank_charts`); others chart
+        one batched call (:class:`~manifold.symbolic.ChartRanking`); others chart
         by chart through :meth:`~manifold.chart.Chart.approximate_parameters`
         and :meth:`~manifold.chart.Chart.quality`, point by point where a
         chart refuses part of the batch.
         """
-        symbolic = all(isinstance(c, SymbolicChart) and hasattr(c, "family") for c in self.charts)
-        ranked = rank_charts(self.charts, self.charts[0].check_point(p)) if symbolic else None
-        if ranked is not None:
-            A, Q = ranked
+        if "_ranking" not in self.__dict__:
+            symbolic = all(isinstance(c, SymbolicChart) and hasattr(c, "family") for c in self.charts)
+            self._ranking = chart_ranking(self.charts) if symbolic else None
+        if self._ranking is not None:
+            A, Q = self._ranking(self.charts[0].check_point(p))
             for b in np.nonzero(np.all(Q == -np.inf, axis=1))[0]:
                 raise ChartDomainError(f"point {p[b]} lies in no chart of the atlas: no chart's inverse is finite there")
             return A, Q
@@ -171,7 +172,7 @@ class Atlas:
         (lowest index on ties), computed cheaply: every chart's quality at its
         :meth:`~manifold.chart.Chart.approximate_parameters` (for charts of one
         family with a closed-form inverse, all charts and points in one compiled
-        call: :func:`~manifold.symbolic.rank_charts`), then the polish only for
+        call: :class:`~manifold.symbolic.ChartRanking`), then the polish only for
         the charts within :data:`QUALITY_MARGIN` of the best, compared again.
         """
         p = self._point(p)

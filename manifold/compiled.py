@@ -213,10 +213,13 @@ def _batched(cf: Any, a: NDArray, theta: ArrayLike) -> NDArray:
     those axes) gives the runtime parameters of each evaluation.
     """
     lead = a.shape[:-1]
-    flat = np.ascontiguousarray(a.reshape(-1, a.shape[-1]).T)
     theta = np.asarray(theta, dtype=float)[..., : cf.nparams]
-    pars = np.broadcast_to(theta, (*lead, theta.shape[-1])).reshape(flat.shape[1], theta.shape[-1]).T
-    return cf(flat, pars=np.ascontiguousarray(pars)).T.reshape(*lead, -1)
+    flat = np.ascontiguousarray(a.reshape(-1, a.shape[-1]).T)
+    if theta.ndim == 1:  # one theta for all: no broadcasting (a start or a switch evaluates one point at a time)
+        pars = theta[:, None] if flat.shape[1] == 1 else np.repeat(theta[:, None], flat.shape[1], axis=1)
+    else:
+        pars = np.ascontiguousarray(np.broadcast_to(theta, (*lead, theta.shape[-1])).reshape(flat.shape[1], theta.shape[-1]).T)
+    return cf(flat, pars=pars).T.reshape(*lead, -1)
 
 
 _REGISTRY: dict[Hashable, CompiledFamily] = {}

@@ -45,7 +45,7 @@ class SymbolicChart(Chart):
     def check_point(self, p: ArrayLike) -> NDArray:
         """``p`` as a float array of shape ``(..., ambient_dim)``; subclasses add their checks that ``p`` lies on
         the manifold (:class:`~manifold.chart.ChartDomainError`).  Charts of one family share the manifold, so
-        one chart's check serves them all (:func:`rank_charts`)."""
+        one chart's check serves them all (:class:`ChartRanking`)."""
         p = real_array("p", p, finite=False)
         if p.ndim == 0 or p.shape[-1] != self.ambient_dim:
             raise ChartDomainError(f"a point has shape (..., {self.ambient_dim}), got {p.shape}")
@@ -53,10 +53,12 @@ class SymbolicChart(Chart):
 
     def approximate_parameters(self, p: ArrayLike) -> NDArray:
         """The family's compiled closed-form inverse at ``z = M^{-1} (p - m)`` (:meth:`get_parameters` without one)."""
-        if compiled(self.family).inverse(float) is None:
+        if "_ranking" not in self.__dict__:
+            self._ranking = chart_ranking([self])
+        if self._ranking is None:
             return self.get_parameters(p)
         p = self.check_point(p)
-        A, _ = rank_charts([self], p.reshape(-1, self.ambient_dim))
+        A, _ = self._ranking(p.reshape(-1, self.ambient_dim))
         return A[:, 0].reshape(*p.shape[:-1], self.dim)
 
     def check_parameters(self, a: ArrayLike) -> NDArray:
@@ -121,24 +123,34 @@ class SymbolicChart(Chart):
         return ChartNumerics(self, K, q_out, fp_type)
 
 
-def rank_charts(charts: Sequence[SymbolicChart], p: NDArray) -> tuple[NDArray, NDArray] | None:
-    """Approximate parameters and quality of the points ``p`` (``(B, N)``, checked) in every chart: one compiled call.
+class ChartRanking:
+    """Approximate parameters and quality of points in every chart of a list, in one compiled call.
 
     For charts of one family with a closed-form inverse
     (:meth:`~manifold.family.ChartFamily.inverse_expressions`): chart ``c``
     sees ``z_c = M_c^{-1} (p - m_c)``, and the family's compiled inverse gives
-    its parameters ``a_c(z_c)`` and its quality at them, all ``B x C`` pairs in
-    one batched evaluation.  Returns ``A`` (``(B, C, dim)``) and ``Q``
-    (``(B, C)``; ``-inf`` where a chart's inverse is not finite: the point
-    lies outside its image), or ``None`` if the family has no inverse.
+    its parameters ``a_c(z_c)`` and its quality at them, all ``B x C`` pairs of
+    points and charts in one batched evaluation.  Build it with
+    :func:`chart_ranking`; the stacked maps are computed once.
     """
-    family = compiled(charts[0].family)
-    if family.inverse(float) is None:
+
+    def __init__(self, charts: Sequence[SymbolicChart]) -> None:
+        self.family = compiled(charts[0].family)
+        self.inverse_maps = np.stack([c.inverse_linear_map() for c in charts])  # (C, N, N)
+        self.offsets = np.stack([c.float_offset() for c in charts])  # (C, N)
+        self.theta = np.stack([np.asarray(c.family_parameters, dtype=float) for c in charts])  # (C, n_params)
+
+    def __call__(self, p: NDArray) -> tuple[NDArray, NDArray]:
+        """``A`` (``(B, C, dim)``) and ``Q`` (``(B, C)``) at the checked points ``p`` (``(B, N)``); ``Q = -inf``
+        where a chart's inverse is not finite (the point lies outside its image)."""
+        z = np.einsum("cij,bcj->bci", self.inverse_maps, p[:, None, :] - self.offsets)
+        A, Q = self.family.evaluate_inverse(self.theta, z)
+        inside = np.all(np.isfinite(A), axis=-1) & np.isfinite(Q)
+        return A, np.where(inside, Q, -np.inf)
+
+
+def chart_ranking(charts: Sequence[SymbolicChart]) -> ChartRanking | None:
+    """The :class:`ChartRanking` of ``charts`` (one family), or ``None`` if the family has no closed-form inverse."""
+    if compiled(charts[0].family).inverse(float) is None:
         return None
-    inv = np.stack([c.inverse_linear_map() for c in charts])  # (C, N, N)
-    offsets = np.stack([c.float_offset() for c in charts])  # (C, N)
-    z = np.einsum("cij,bcj->bci", inv, p[:, None, :] - offsets)
-    theta = np.stack([np.asarray(c.family_parameters, dtype=float) for c in charts])  # (C, n_params)
-    A, Q = family.evaluate_inverse(theta, z)
-    inside = np.all(np.isfinite(A), axis=-1) & np.isfinite(Q)
-    return A, np.where(inside, Q, -np.inf)
+    return ChartRanking(charts)

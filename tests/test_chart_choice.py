@@ -2,7 +2,7 @@
 
 ``Atlas.chart_choice`` ranks the charts by their quality at the closed-form
 (unpolished) parameters, all charts and points in one compiled call
-(``manifold.symbolic.rank_charts``), and polishes only the charts within
+(``manifold.symbolic.ChartRanking``), and polishes only the charts within
 ``QUALITY_MARGIN`` of the best.  These tests hold it to the
 full definition, computed chart by chart through the public per-chart inverse,
 where it is hardest: latitudes at and near the poles, ``t`` near ``+-pi/2``,
@@ -17,7 +17,7 @@ from charts import SuspensionAtlas, SuspensionChart, suspension_formula
 from charts.chain_geometry import to_complex, unlabel_hinges
 from manifold.atlas import QUALITY_MARGIN
 from manifold.backends import NUMPY, Cx
-from manifold.symbolic import rank_charts
+from manifold.symbolic import chart_ranking
 
 from .conftest import HALF_PI, base_lengths, chart_parameters, folded_conditioning, rod_orders
 from .sphere_family import sphere_metric
@@ -68,7 +68,7 @@ def test_the_polish_moves_a_competitive_quality_by_less_than_half_the_margin(cas
 
 @given(base_lengths(5), st.integers(1, 12), st.integers(0, 2**32 - 1))
 def test_the_compiled_inverse_ranks_as_the_formula_on_numpy(L, count, seed):
-    """rank_charts inverts every chart in one compiled call; the same formula on numpy (exact sinc, libm)
+    """ChartRanking inverts every chart in one compiled call; the same formula on numpy (exact sinc, libm)
     is the independent route.  Where a chart is well conditioned (quality >= 0.25) both give its parameters
     and quality to rounding; at its own poles both give quality ~0."""
     atlas = SuspensionAtlas(5, L)
@@ -76,7 +76,7 @@ def test_the_compiled_inverse_ranks_as_the_formula_on_numpy(L, count, seed):
     a = np.column_stack([rng.uniform(-HALF_PI, HALF_PI, (count, 2)), rng.uniform(-np.pi, np.pi, count)])
     a[: count // 2, 0] = HALF_PI  # exact poles of chart 0
     pts = atlas.get_point(0, a)
-    A, Q = rank_charts(atlas.charts, pts)
+    A, Q = chart_ranking(atlas.charts)(pts)
     tol = 1e-12 * folded_conditioning(5, L)
     for c, chart in enumerate(atlas.charts):
         z = unlabel_hinges(to_complex(pts), chart.order, L)
