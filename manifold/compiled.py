@@ -34,6 +34,21 @@ from .geodesic_system import Layout, SymbolicPieces
 from .precision import as_fp, heyoka_fp_kwargs, is_double, unit_roundoff
 
 
+#: Taylor tolerance used when none is given, per floating type (``benchmarks/taylor_options.py``): in float64,
+#: 1e-14 gives the final hinge error and energy error of the machine epsilon (1e-14 and 1e-15 over T = 20,
+#: n = 4..8) at 0.71-0.84x its cost; 1e-13 already loses a digit at n = 6 and 8.  Other types: the machine
+#: epsilon of the type (heyoka's default), not measured.
+DEFAULT_TOLERANCE = {float: 1e-14}
+#: LLVM optimisation level of the compiled integrators (``benchmarks/taylor_options.py``): levels 1 and 2 step
+#: 13-16 % faster than 3 in compact mode (n = 4..8, float64) and 1 compiles 1.6-2.2x faster than 3; 0 steps 2x slower.
+DEFAULT_OPT_LEVEL = 1
+
+
+def default_tolerance(fp_type: Any) -> float | None:
+    """The Taylor tolerance used for ``fp_type`` when none is given (``None``: heyoka's, the machine epsilon)."""
+    return DEFAULT_TOLERANCE[float] if is_double(fp_type) else None
+
+
 class CompiledFamily:
     """Compiled artefacts of one chart family (use :func:`compiled` to get the shared instance).
 
@@ -142,16 +157,18 @@ class CompiledFamily:
 
     @contextmanager
     def integrator(self, fp_type: Any = float, tol: float | None = None, form: str = "embedded",
-                   backward: bool = False, compact_mode: bool = True, opt_level: int = 3) -> Iterator[Any]:
+                   backward: bool = False, compact_mode: bool = True, opt_level: int = DEFAULT_OPT_LEVEL) -> Iterator[Any]:
         """Lend a Taylor integrator of the geodesics with switch events; return it after use.
 
         The caller owns it inside the ``with`` block: set ``state``, ``time``
         and ``pars`` (``Layout.pack(...)[:len(ta.pars)]``) before each use.
-        ``tol=None`` is heyoka's default, the machine epsilon of ``fp_type``.
-        ``backward=True`` mirrors the event directions for negative times.
-        ``compact_mode`` and ``opt_level`` (LLVM's optimisation level, 0..3)
-        are heyoka's compile options; each combination is a separate integrator.
+        ``tol=None`` is :func:`default_tolerance` (1e-14 in float64, the
+        machine epsilon of other types).  ``backward=True`` mirrors the event
+        directions for negative times.  ``compact_mode`` and ``opt_level``
+        (LLVM's optimisation level, 0..3) are heyoka's compile options; each
+        combination is a separate integrator.
         """
+        tol = default_tolerance(fp_type) if tol is None else tol
         key = ("integrator", fp_type, tol, form, backward, compact_mode, opt_level)
 
         def build() -> Any:

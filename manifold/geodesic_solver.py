@@ -101,8 +101,9 @@ def solve_chart_exp_ode(
         The whole run -- integrator, transition maps, energies, ``sol(t)`` --
         is in this type.
     tol
-        Tolerance of the default Taylor stepper (``None``: heyoka's, the machine
-        epsilon of ``fp_type``); give it to the stepper instead when passing one.
+        Tolerance of the default Taylor stepper (``None``: 1e-14 in float64, the
+        machine epsilon of other types; :func:`manifold.compiled.default_tolerance`);
+        give it to the stepper instead when passing one.
     q_out
         Switch threshold on chart quality, in ``(0, 1)``; default ``atlas.switch_threshold``.
     switching
