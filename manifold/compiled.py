@@ -279,6 +279,8 @@ class ChartNumerics:
         self.M_inv = as_fp(chart.inverse_linear_map(), fp_type)
         self.m = chart.offset(fp_type)
         self.pars = self.compiled.layout.pack(chart.family_parameters, chart.core_metric(K), q_out, fp_type)
+        for x in (self.M, self.M_inv, self.m, self.pars):  # shared by every solve on the chart (SymbolicChart.numerics)
+            x.flags.writeable = False
         self._cf = self.compiled.transfer(fp_type)
 
     def _eval(self, a: NDArray, c: NDArray, u: NDArray) -> NDArray:

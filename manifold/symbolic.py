@@ -119,8 +119,16 @@ class SymbolicChart(Chart):
         return B
 
     def numerics(self, K: NDArray, q_out: float, fp_type: Any = float) -> ChartNumerics:
-        """This chart in the working precision ``fp_type`` for the ambient metric ``K`` (see :class:`ChartNumerics`)."""
-        return ChartNumerics(self, K, q_out, fp_type)
+        """This chart in the working precision ``fp_type`` for the ambient metric ``K`` (see :class:`ChartNumerics`).
+
+        Built once per ``(K, q_out, fp_type)`` and kept: every solve on the same atlas reuses it.
+        """
+        K = np.asarray(K, dtype=float)
+        key = (K.shape, K.tobytes(), float(q_out), fp_type)
+        cache = self.__dict__.setdefault("_numerics", {})
+        if key not in cache:
+            cache[key] = ChartNumerics(self, K, q_out, fp_type)
+        return cache[key]
 
 
 class ChartRanking:
