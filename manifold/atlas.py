@@ -21,7 +21,7 @@ from .validation import check_index, check_real, real_array
 
 #: Charts whose quality at their approximate (unpolished) parameters lies within this of the best chart's are
 #: polished and compared again.  The choice equals the argmax of the polished qualities as long as the polish
-#: moves no competitive quality by half of this: measured up to 5e-5 for the chain with ``L - (n-2) = 1e-12``,
+#: moves no competitive quality by half of this: measured up to 6e-5 for the chain with ``L - (n-2) = 1e-12``,
 #: where the fold terms of the quality have gradients ~1/(L - (n-2)), and ~1e-10 elsewhere
 #: (``benchmarks/engine_costs.py``, ``tests/test_chart_choice.py``).
 QUALITY_MARGIN = 1e-3
