@@ -32,7 +32,8 @@ from manifold import TaylorStepper, compiled, solve_chart_exp_ode
 from .study.experiments import generic_start
 
 COMPACT_OPTIONS = [(True, 3), (True, 2), (True, 1), (True, 0)]
-TOLERANCES = [1e-12, 1e-13, 1e-14, 1e-15, None]
+EPS = float(np.finfo(float).eps)
+TOLERANCES = [1e-12, 1e-13, 1e-14, 1e-15, EPS]
 
 
 def _rebuild(family, fp_type, compact: bool, opt_level: int) -> float:
@@ -146,7 +147,7 @@ def report(args: argparse.Namespace) -> None:
     print(f"{'n':>2} {'tol':>7} {'run s':>8} {'steps':>6} {'switches':>8} {'hinge err':>9} {'dE/E':>8}")
     for n in args.n:
         for r in tolerance_sweep(n, args.T, default.compact_mode, default.opt_level):
-            tol = "eps" if r["tol"] is None else f"{r['tol']:.0e}"
+            tol = "eps" if r["tol"] == EPS else f"{r['tol']:.0e}"
             print(f"{n:>2} {tol:>7} {r['cpu']:8.4f} {r['steps']:>6} {r['switches']:>8} {r['hinge_error']:9.1e} "
                   f"{r['energy_error']:8.1e}", flush=True)
 
