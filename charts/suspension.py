@@ -22,7 +22,7 @@ from manifold.symbolic import SymbolicChart
 from manifold.validation import real_array
 
 from . import suspension_formula as formula
-from manifold.backends import NUMPY, Cx
+from manifold.backends import NUMPY
 from .chain_geometry import (
     closure_residual,
     relabel_hinges,
@@ -121,26 +121,36 @@ class SuspensionChart(SymbolicChart):
         return np.broadcast_to(to_real(np.array([z.re + 1j * z.im])), (*a.shape[:-1], 2)).copy()
 
     def get_parameters(self, p: ArrayLike) -> NDArray:
-        p = real_array("p", p, finite=False)
-        if p.ndim == 0 or p.shape[-1] != self.ambient_dim:
-            raise ChartDomainError(f"a point has shape (..., {self.ambient_dim}), got {p.shape}")
+        return self.polish_parameters(self.approximate_parameters(p), p)
+
+    def check_point(self, p: ArrayLike) -> NDArray:
+        """``p`` as floats of shape ``(..., 2(n-1))``, finite, closing to :data:`CLOSURE_TOLERANCE` (``ChartDomainError``)."""
+        p = super().check_point(p)
         if not np.all(np.isfinite(p)):
             raise ChartDomainError(f"point must be finite, got {p}")
-        h = to_complex(p)
-        res = closure_residual(h, self.L)
+        res = closure_residual(to_complex(p), self.L)
         if np.any(res > CLOSURE_TOLERANCE):
             raise ChartDomainError(
                 f"configuration does not close: rod-length error {np.max(res):.3g} > {CLOSURE_TOLERANCE:g} "
                 f"(n = {self.n}, L = {self.L})"
             )
-        z = unlabel_hinges(h, self.order, self.L)
+        return p
+
+    def approximate_parameters(self, p: ArrayLike) -> NDArray:
+        """The closed-form inverse (:func:`charts.suspension_formula.parameters`, compiled), before the polish."""
+        if self.n > 2:
+            return super().approximate_parameters(p)
+        z = unlabel_hinges(to_complex(self.check_point(p)), self.order, self.L)
+        if np.any(np.sign(z.imag) == -self.sheet):
+            raise ChartDomainError(f"point is on the other sheet than this S^0 chart (sheet {self.sheet})")
+        return np.zeros((*z.shape[:-1], 0))
+
+    def polish_parameters(self, a: ArrayLike, p: ArrayLike) -> NDArray:
+        """Two Gauss-Newton steps (:meth:`~manifold.chart.Chart.refine_parameters`): the closed form goes
+        through ill-conditioned intermediates near the chart's singular set."""
         if self.n == 2:
-            if np.any(np.sign(z.imag) == -self.sheet):
-                raise ChartDomainError(f"point is on the other sheet than this S^0 chart (sheet {self.sheet})")
-            return np.zeros((*p.shape[:-1], 0))
-        with np.errstate(divide="ignore", invalid="ignore"):  # both branches of np.where are evaluated
-            cols = formula.parameters([Cx(z[..., k].real, z[..., k].imag) for k in range(self.n - 1)], self.L, NUMPY)
-        return self.refine_parameters(np.stack(np.broadcast_arrays(*cols), axis=-1), p)
+            return np.asarray(a, dtype=float)
+        return self.refine_parameters(a, p)
 
     def clamp_parameters(self, a: NDArray) -> NDArray:
         """Latitudes clipped to ``[-pi/2, pi/2]``, ``t`` wrapped to ``[-pi, pi)``."""

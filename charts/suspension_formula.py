@@ -95,7 +95,7 @@ def _rod_slack(w: Cx, ops: Any) -> Any:
     difference cancels there, exactly where a sub-chain is nearly stretched).
     """
     r = ops.sqrt(w.abs2())
-    return ops.where(w.re > 0, w.im * w.im / (r + ops.abs(w.re)), r - w.re)
+    return ops.where(ops.gt(w.re, 0), w.im * w.im / (r + ops.abs(w.re)), r - w.re)
 
 
 def _up_dn(base: Base, alpha: Any, theta: Any, inner_slack: Any, d: Any, ops: Any) -> tuple[Any, Any]:
@@ -109,7 +109,7 @@ def _up_dn(base: Base, alpha: Any, theta: Any, inner_slack: Any, d: Any, ops: An
     large = 1 + ops.ratio_or_zero(ops.abs(theta), alpha)
     X = inner_slack * (base.m - 1 + d)
     small = 2 * ops.ratio_or_zero(ops.asin_clipped(X / (4 * base.D * ops.sin(alpha * large / 2))), alpha)
-    north = theta >= 0
+    north = ops.ge(theta, 0)
     return ops.where(north, large, small), ops.where(north, small, large)
 
 

@@ -20,7 +20,7 @@ from manifold.jets import Jet, JetOps
 from manifold.family import ChartFamily
 
 from . import suspension_formula as formula
-from manifold.backends import HeyokaOps
+from manifold.backends import Cx, HeyokaOps
 
 
 def hinge_expressions(a: list, fp_type: type = float, L=hy.par[0]) -> list:
@@ -57,6 +57,12 @@ class SuspensionFamily(ChartFamily):
         jets = [Jet.variable(ai, ci, i, k) for i, (ai, ci) in enumerate(zip(a, c))]
         z = formula.hinges(jets, hy.par[0], JetOps(HeyokaOps(fp_type)))
         return [part for h in z for part in (h.re, h.im)]
+
+    def inverse_expressions(self, z, fp_type):
+        """The closed-form inverse (:func:`charts.suspension_formula.parameters`) of hinges ``z`` in chart rod order."""
+        z = list(z)
+        hinges = [Cx(z[2 * k], z[2 * k + 1]) for k in range(self.n - 1)]
+        return formula.parameters(hinges, hy.par[0], HeyokaOps(fp_type))
 
     def quality_expressions(self, a):
         """``cos(phi_m)`` for every latitude (the poles), then the fold terms ``q_A``, ``q_B``

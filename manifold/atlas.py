@@ -15,7 +15,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .chart import Chart, ChartDomainError
+from .symbolic import SymbolicChart, chart_ranking
 from .validation import check_index, check_real, real_array
+
+
+#: Charts whose quality at their approximate (unpolished) parameters lies within this of the best chart's are
+#: polished and compared again.  The choice equals the argmax of the polished qualities as long as the polish
+#: moves no competitive quality by half of this: measured up to 6e-5 for the chain with ``L - (n-2) = 1e-12``,
+#: where the fold terms of the quality have gradients ~1/(L - (n-2)), and ~1e-10 elsewhere
+#: (``benchmarks/engine_costs.py``, ``tests/test_chart_choice.py``).
+QUALITY_MARGIN = 1e-3
 
 
 class Atlas:
@@ -83,42 +92,57 @@ class Atlas:
             raise ValueError(f"a point has shape (..., {self.ambient_dim}), got {p.shape}")
         return p
 
-    def _all_parameters(self, p: NDArray) -> tuple[list[NDArray | None], NDArray]:
-        """Parameters and quality of the single point ``p`` in every chart."""
-        params, q, errors = [], [], []
-        for c in self.charts:
-            try:
-                a = c.get_parameters(p)
-            except ChartDomainError as e:  # p lies outside this chart's image
-                a = None
-                errors.append(e)
-            params.append(a)
-            q.append(-np.inf if a is None else c.quality(a))
-        if len(errors) == len(self.charts):  # e.g. p is not on the manifold: say why, from chart 0
-            raise ChartDomainError(f"point {np.asarray(p)} lies in no chart of the atlas: {errors[0]}") from errors[0]
-        return params, np.array(q)
+    def _ranked(self, p: NDArray) -> tuple[NDArray, NDArray]:
+        """Every chart's approximate parameters and its quality there for the points ``p`` (``(B, N)``):
+        ``(B, C, dim)`` and ``(B, C)``, ``-inf`` where a chart's image does not contain the point.
 
-    def _batch_parameters(self, p: NDArray) -> tuple[NDArray, NDArray]:
-        """Parameters ``(B, len(atlas), dim)`` (NaN outside a chart) and qualities ``(B, len(atlas))`` of points ``(B, N)``.
-
-        One batched inverse per chart; only if some point lies outside some
-        chart's image (a :class:`ChartDomainError` for the batch) is the batch
-        decided point by point.
+        Charts of one family with a compiled closed-form inverse are ranked in
+        one batched call (:class:`~manifold.symbolic.ChartRanking`); others chart
+        by chart through :meth:`~manifold.chart.Chart.approximate_parameters`
+        and :meth:`~manifold.chart.Chart.quality`, point by point where a
+        chart refuses part of the batch.
         """
-        try:
-            per_chart = [c.get_parameters(p) for c in self.charts]
-            q = np.stack([c.quality(a) for c, a in zip(self.charts, per_chart)], axis=-1)
-            return np.stack(per_chart, axis=1), q
-        except ChartDomainError:
-            pass
-        out_a = np.full((p.shape[0], len(self.charts), self.dim), np.nan)
-        out_q = np.empty((p.shape[0], len(self.charts)))
-        for b, x in enumerate(p):
-            in_charts, out_q[b] = self._all_parameters(x)
-            for i, a in enumerate(in_charts):
-                if a is not None:
-                    out_a[b, i] = a
-        return out_a, out_q
+        if "_ranking" not in self.__dict__:
+            symbolic = [c for c in self.charts if isinstance(c, SymbolicChart) and hasattr(c, "family")]
+            self._ranking = chart_ranking(symbolic) if len(symbolic) == len(self.charts) else None
+        if self._ranking is not None:
+            A, Q = self._ranking(self._ranking.check_point(p))
+            for row in np.nonzero(np.all(Q == -np.inf, axis=1))[0]:
+                raise ChartDomainError(f"point {p[row]} lies in no chart of the atlas: no chart's inverse is finite there")
+            return A, Q
+        B, C = len(p), len(self.charts)
+        A, Q = np.full((B, C, self.dim), np.nan), np.full((B, C), -np.inf)
+        errors: list[list[ChartDomainError]] = [[] for _ in range(B)]
+        for c, chart in enumerate(self.charts):
+            try:
+                A[:, c] = chart.approximate_parameters(p)
+                Q[:, c] = chart.quality(A[:, c])
+                continue
+            except ChartDomainError:  # some point lies outside this chart's image: find which, point by point
+                pass
+            for b in range(B):
+                try:
+                    A[b, c] = chart.approximate_parameters(p[b])
+                    Q[b, c] = chart.quality(A[b, c])
+                except ChartDomainError as e:
+                    errors[b].append(e)
+        for b in range(B):
+            if len(errors[b]) == C:  # e.g. p is not on the manifold: say why, from chart 0
+                raise ChartDomainError(f"point {p[b]} lies in no chart of the atlas: {errors[b][0]}") from errors[b][0]
+        return A, np.where(np.isnan(Q), -np.inf, Q)  # a NaN quality (0/0 at a chart's pole) never wins
+
+    def _polished(self, p: NDArray, margin: float) -> tuple[NDArray, NDArray]:
+        """Parameters and qualities (``(B, C, dim)``, ``(B, C)``) of the points ``p`` (``(B, N)``) in every chart,
+        polished where the approximate quality lies within ``margin`` of the point's best; ``-inf`` quality elsewhere."""
+        A, Q = self._ranked(p)
+        polish = (Q > -np.inf) & (Q >= Q.max(axis=1, keepdims=True) - margin)
+        for c, chart in enumerate(self.charts):
+            rows = polish[:, c]
+            if rows.any():
+                A[rows, c] = chart.polish_parameters(A[rows, c], p[rows])
+                Q[rows, c] = chart.quality(A[rows, c])
+        Q[~polish] = -np.inf
+        return A, Q
 
     def qualities(self, p: ArrayLike) -> NDArray:
         """Quality of every chart at point ``p``: shape ``(len(atlas),)``, or ``p.shape[:-1] + (len(atlas),)``.
@@ -126,9 +150,8 @@ class Atlas:
         ``-inf`` for a chart whose image does not contain ``p``.
         """
         p = self._point(p)
-        if p.ndim == 1:
-            return self._all_parameters(p)[1]
-        return self._batch_parameters(p.reshape(-1, p.shape[-1]))[1].reshape(*p.shape[:-1], len(self.charts))
+        flat = p.reshape(-1, self.ambient_dim)
+        return self._polished(flat, np.inf)[1].reshape(*p.shape[:-1], len(self.charts))
 
     def get_chart_index(self, p: ArrayLike) -> int | NDArray:
         """Index of the chart of best quality at ``p`` (lowest index on ties); an int array for a batch."""
@@ -137,22 +160,30 @@ class Atlas:
     def best_chart(self, p: ArrayLike) -> tuple[int | NDArray, NDArray]:
         """``(i, a)``: the index ``get_chart_index(p)`` and the parameters of ``p`` in that chart.
 
-        One inverse per chart, where ``get_chart_index`` followed by
-        ``get_parameters`` would invert the chosen chart twice.  A batch of
-        points (shape ``(..., ambient_dim)``) gives arrays of indices ``(...)``
-        and parameters ``(..., dim)``, with one batched inverse per chart.
+        A batch of points (shape ``(..., ambient_dim)``) gives arrays of
+        indices ``(...)`` and parameters ``(..., dim)``.  See :meth:`chart_choice`.
+        """
+        return self.chart_choice(p)[:2]
+
+    def chart_choice(self, p: ArrayLike) -> tuple[int | NDArray, NDArray, float | NDArray]:
+        """``(i, a, q)``: the chart of best quality at ``p``, the parameters of ``p`` in it and its quality.
+
+        Equal to the argmax over all charts of ``quality(get_parameters(p))``
+        (lowest index on ties), computed cheaply: every chart's quality at its
+        :meth:`~manifold.chart.Chart.approximate_parameters` (for charts of one
+        family with a closed-form inverse, all charts and points in one compiled
+        call: :class:`~manifold.symbolic.ChartRanking`), then the polish only for
+        the charts within :data:`QUALITY_MARGIN` of the best, compared again.
         """
         p = self._point(p)
-        if p.ndim > 1:
-            all_a, all_q = self._batch_parameters(p.reshape(-1, p.shape[-1]))
-            idx = np.argmax(all_q, axis=-1)
-            a = all_a[np.arange(idx.size), idx]
-            return idx.reshape(p.shape[:-1]), a.reshape(*p.shape[:-1], self.dim)
-        params, q = self._all_parameters(p)
-        i = int(np.argmax(q))
-        a = params[i]
-        assert a is not None  # a chart without parameters has quality -inf, and some chart has them
-        return i, a
+        flat = p.reshape(-1, self.ambient_dim)
+        A, Q = self._polished(flat, QUALITY_MARGIN)
+        idx = np.argmax(Q, axis=1)
+        rows = np.arange(len(flat))
+        a, q = A[rows, idx], Q[rows, idx]
+        if p.ndim == 1:
+            return int(idx[0]), a[0], float(q[0])
+        return idx.reshape(p.shape[:-1]), a.reshape(*p.shape[:-1], self.dim), q.reshape(p.shape[:-1])
 
     def get_parameters(self, i: int, p: ArrayLike) -> NDArray:
         """Parameters of point ``p`` in chart ``i``."""

@@ -64,6 +64,8 @@ class NumpyOps:
 
     where = staticmethod(np.where)
     abs = staticmethod(np.abs)
+    gt = staticmethod(np.greater)
+    ge = staticmethod(np.greater_equal)
 
     @staticmethod
     def one_minus_sin(x):
@@ -129,9 +131,9 @@ class HeyokaOps:
         self.fp_type = fp_type
         coeffs, c = [], fp_type(1)
         for k in range(_sinc_terms(fp_type)):
-            coeffs.append(self.hy.expression(c))
+            coeffs.append(c)
             c = -c / fp_type((2 * k + 2) * (2 * k + 3))  # (-1)^k / (2k+1)!, rounded in fp_type
-        self._sinc_coeffs = coeffs
+        self.sinc_coefficients = tuple(coeffs)
 
     def sin(self, x):
         """``sin x`` as a heyoka expression."""
@@ -156,6 +158,14 @@ class HeyokaOps:
     def where(self, cond, x, y):
         """``x`` where ``cond`` holds, else ``y`` (heyoka's ``select``)."""
         return self.hy.select(cond, x, y)
+
+    def gt(self, x, y):
+        """``x > y`` as a heyoka condition (expressions have no comparison operators)."""
+        return self.hy.gt(x, y)
+
+    def ge(self, x, y):
+        """``x >= y`` as a heyoka condition."""
+        return self.hy.gte(x, y)
 
     def abs(self, x):
         """``|x| = select(x < 0, -x, x)``."""
@@ -185,11 +195,14 @@ class HeyokaOps:
         ``[0, pi]``) shortens the series needed for ``fp_type`` by a fifth.
         """
         h = x / 2.0
-        y = h * h
-        acc = self._sinc_coeffs[-1]
-        for c in reversed(self._sinc_coeffs[:-1]):
-            acc = c + y * acc
-        return self.cos(h) * acc
+        return self.cos(h) * self.polynomial(self.sinc_coefficients, h * h)
+
+    def polynomial(self, coeffs, y):
+        """``sum_k coeffs[k] y^k`` in Horner form; ``coeffs`` are numbers of ``fp_type``."""
+        acc = self.hy.expression(coeffs[-1])
+        for c in reversed(coeffs[:-1]):
+            acc = self.hy.expression(c) + y * acc
+        return acc
 
     def ratio_or_zero(self, a, b):
         """``a / b``, and 0 where ``b == 0`` (a collapsed sub-sphere: any value is valid)."""

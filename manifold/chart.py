@@ -96,21 +96,49 @@ class Chart(ABC):
         scale = np.maximum(np.linalg.norm(v, axis=-1), np.finfo(float).tiny)
         return np.linalg.norm(r, axis=-1) / scale
 
+    def point_and_jacobian(self, a: ArrayLike) -> tuple[NDArray, NDArray]:
+        """``get_point(a)`` and ``raw_jacobian(a)`` (charts that compute both in one evaluation override this)."""
+        return self.get_point(a), self.raw_jacobian(a)
+
     def refine_parameters(self, a: ArrayLike, p: ArrayLike, steps: int = 2) -> NDArray:
         """Polish approximate parameters ``a`` of point ``p`` by Gauss-Newton steps ``a <- a + J^+ (p - get_point(a))``.
 
         A closed-form inverse that goes through ill-conditioned intermediates
         (as near a chart's singular set) is so brought to the accuracy the
-        forward map allows (see :func:`gauss_newton`).
+        forward map allows (see :func:`gauss_newton`).  Each trial's point and
+        Jacobian come from one :meth:`point_and_jacobian`; the Jacobian serves
+        the next step when the trial is kept.
         """
+        last: dict = {}
+
+        def point(x: NDArray) -> NDArray:
+            z, last["J"] = self.point_and_jacobian(x)
+            last["x"] = x
+            return z
+
         def solve(x: NDArray, r: NDArray) -> NDArray:
-            J = self.raw_jacobian(x)
+            J = last["J"] if np.array_equal(x, last["x"]) else self.raw_jacobian(x)
             regular = np.all(np.isfinite(J), axis=(-2, -1))
             J = np.where(regular[..., None, None], J, 0.0)  # singular points: zero step
             return _apply(np.linalg.pinv(J), r)
 
-        return gauss_newton(np.array(a, dtype=float), np.asarray(p, dtype=float), self.get_point, solve,
+        return gauss_newton(np.array(a, dtype=float), np.asarray(p, dtype=float), point, solve,
                             max_steps=steps, clamp=self.clamp_parameters)
+
+    def approximate_parameters(self, p: ArrayLike) -> NDArray:
+        """The inverse before its polish: ``get_parameters(p) = polish_parameters(approximate_parameters(p), p)``.
+
+        A chart whose inverse is a cheap closed form followed by a costlier
+        polish (Gauss-Newton steps) overrides both, so that an atlas can rank
+        its charts by their quality at these parameters and polish only those
+        that can win (:meth:`manifold.atlas.Atlas.best_chart`).  Default:
+        :meth:`get_parameters` itself, with nothing left to polish.
+        """
+        return self.get_parameters(p)
+
+    def polish_parameters(self, a: ArrayLike, p: ArrayLike) -> NDArray:
+        """The polish that :meth:`get_parameters` applies to :meth:`approximate_parameters`; the identity by default."""
+        return np.asarray(a, dtype=float)
 
     def clamp_parameters(self, a: NDArray) -> NDArray:
         """Bring parameters just outside the domain (by rounding) back into it; identity by default."""
@@ -140,16 +168,16 @@ def gauss_newton(a: NDArray, target: NDArray, point: Callable, solve: Callable, 
     clamp
         Maps a trial back into the parameter domain (default: identity).
     """
-    def residual(x: NDArray) -> NDArray:
-        return np.max(np.abs(target - point(x)), axis=-1)
-
-    res = residual(a)
+    z = point(a)
+    res = np.max(np.abs(target - z), axis=-1)
     for _ in range(max_steps):
-        step = solve(a, target - point(a))
+        step = solve(a, target - z)
         trial = a + step if clamp is None else clamp(a + step)
-        res_trial = residual(trial)
+        z_trial = point(trial)
+        res_trial = np.max(np.abs(target - z_trial), axis=-1)
         better = np.asarray(res_trial <= res)  # a 0-d comparison of real128 scalars is a Python bool
         a = np.where(better[..., None], trial, a)
+        z = np.where(better[..., None], z_trial, z)
         res = np.where(better, res_trial, res)
         size = np.asarray(np.max(np.abs(a), axis=-1)).astype(float)  # convergence judged in float64
         if np.all(np.asarray(np.max(np.abs(step), axis=-1)).astype(float) <= step_tol * np.maximum(1.0, size)):

@@ -3,7 +3,7 @@
 :func:`compiled` returns the :class:`CompiledFamily` of a family.  It owns the
 parameter :class:`~manifold.geodesic_system.Layout`, the symbolic pieces per
 precision, and lazily compiled artefacts: the geodesic Taylor integrator, the
-transfer, acceleration, quality, Jacobian and Hessian functions.  Charts derive their
+transfer, acceleration, quality, point, Jacobian, Hessian and inverse functions.  Charts derive their
 numpy Jacobian, Hessian and quality from it, and solvers their integrators, so each
 formula exists once.
 
@@ -31,6 +31,21 @@ from .chart import gauss_newton
 from .family import ChartFamily
 from .geodesic_system import Layout, SymbolicPieces
 from .precision import as_fp, heyoka_fp_kwargs, is_double, unit_roundoff
+
+
+#: Taylor tolerance used when none is given, per floating type (``benchmarks/taylor_options.py``): in float64,
+#: 1e-14 gives the final hinge error and energy error of the machine epsilon (1e-14 and 1e-15 over T = 20,
+#: n = 4..8) at 0.71-0.84x its cost; 1e-13 already loses a digit at n = 6 and 8.  Other types: the machine
+#: epsilon of the type (heyoka's default), not measured.
+DEFAULT_TOLERANCE = {float: 1e-14}
+#: LLVM optimisation level of the compiled integrators (``benchmarks/taylor_options.py``): levels 1 and 2 step
+#: 13-16 % faster than 3 in compact mode (n = 4..8, float64) and 1 compiles 1.6-2.2x faster than 3; 0 steps 2x slower.
+DEFAULT_OPT_LEVEL = 1
+
+
+def default_tolerance(fp_type: Any) -> float | None:
+    """The Taylor tolerance used for ``fp_type`` when none is given (``None``: heyoka's, the machine epsilon)."""
+    return DEFAULT_TOLERANCE[float] if is_double(fp_type) else None
 
 
 class CompiledFamily(ArtefactStore):
@@ -111,26 +126,68 @@ class CompiledFamily(ArtefactStore):
             return [d[r * k + i, j] for r in range(P.N) for i in range(k) for j in range(i, k)]
         return self._cfunc(("hessian", fp_type), fp_type, outputs, "a")
 
+    def inverse(self, fp_type: Any = float) -> Any:
+        """Compiled ``z -> (a(z), quality_1(a(z)), ...)`` from the family's closed-form inverse; ``None`` without one.
+
+        One evaluation ranks a chart at a point: its approximate parameters and
+        its quality there, with no Jacobian and no polish.
+        """
+        def build() -> Any:
+            z = [hy.expression(f"z{r}") for r in range(self.family.point_dim)]
+            a = self.family.inverse_expressions(z, fp_type)
+            if a is None:
+                return None
+            outs = [x if isinstance(x, hy.expression) else hy.expression(float(x))
+                    for x in list(a) + list(self.family.quality_expressions(a))]
+            return hy.cfunc(outs, z, compact_mode=True, **heyoka_fp_kwargs(fp_type))
+        return self._get(("inverse", fp_type), build)
+
+    def point(self, fp_type: Any = float) -> Any:
+        """Compiled ``a -> z(a)``: the chart map alone (no Jacobian to compute and throw away)."""
+        return self._cfunc(("point", fp_type), fp_type, lambda P: list(P.z), "a")
+
     @contextmanager
     def integrator(self, fp_type: Any = float, tol: float | None = None, form: str = "embedded",
-                   backward: bool = False) -> Iterator[Any]:
-        """Lend a Taylor integrator (compact mode) of the geodesics with switch events; return it after use.
+                   backward: bool = False, compact_mode: bool = True, opt_level: int = DEFAULT_OPT_LEVEL) -> Iterator[Any]:
+        """Lend a Taylor integrator of the geodesics with switch events; return it after use.
 
         The caller owns it inside the ``with`` block: set ``state``, ``time``
         and ``pars`` (``Layout.pack(...)[:len(ta.pars)]``) before each use.
-        ``tol=None`` is heyoka's default, the machine epsilon of ``fp_type``.
-        ``backward=True`` mirrors the event directions for negative times.
+        ``tol=None`` is :func:`default_tolerance` (1e-14 in float64, the
+        machine epsilon of other types).  ``backward=True`` mirrors the event
+        directions for negative times.  ``compact_mode`` and ``opt_level``
+        (LLVM's optimisation level, 0..3) are heyoka's compile options; each
+        combination is a separate integrator.
         """
-        key = ("integrator", fp_type, tol, form, backward)
+        tol = default_tolerance(fp_type) if tol is None else tol
+        key = ("integrator", fp_type, tol, form, backward, compact_mode, opt_level)
 
         def build() -> Any:
             P = self.pieces(fp_type)
             kw = {} if tol is None else {"tol": fp_type(tol)}
-            return hy.taylor_adaptive(P.equations(form), as_fp(np.zeros(2 * P.k), fp_type), compact_mode=True,
-                                      t_events=P.events(backward), **kw, **heyoka_fp_kwargs(fp_type))
+            return hy.taylor_adaptive(P.equations(form), as_fp(np.zeros(2 * P.k), fp_type), compact_mode=compact_mode,
+                                      opt_level=opt_level, t_events=P.events(backward), **kw,
+                                      **heyoka_fp_kwargs(fp_type))
 
         with self._lend(key, build) as ta:
             yield ta
+
+    def evaluate_inverse(self, theta: ArrayLike, z: ArrayLike) -> tuple[NDArray, NDArray]:
+        """Approximate parameters ``a(z)`` (``(..., k)``) and the quality there (``(...)``), float64, batched.
+
+        ``theta`` has shape ``(n_params,)`` or ``(..., n_params)``; requires
+        :meth:`~manifold.family.ChartFamily.inverse_expressions`.
+        """
+        z = np.asarray(z, dtype=float)
+        out = _batched(self.inverse(float), z, theta)
+        k = self.family.dim
+        q = np.min(out[..., k:], axis=-1) if self.n_quality else np.ones(z.shape[:-1])
+        return out[..., :k], q
+
+    def evaluate_point(self, theta: ArrayLike, a: ArrayLike) -> NDArray:
+        """``z`` (``(..., N)``) at parameters ``a`` (float64, batched; ``theta`` of shape ``(..., n_params)``)."""
+        a = np.asarray(a, dtype=float)
+        return _batched(self.point(float), a, theta)
 
     def evaluate_jacobian(self, theta: ArrayLike, a: ArrayLike) -> tuple[NDArray, NDArray]:
         """``z`` (``(..., N)``) and ``dz/da`` (``(..., N, k)``) at parameters ``a`` (float64, batched)."""
@@ -151,7 +208,7 @@ class CompiledFamily(ArtefactStore):
         return H
 
     def evaluate_quality(self, theta: ArrayLike, a: ArrayLike) -> NDArray:
-        """``min_m quality_m(a)`` (float64, batched); 1 for a global chart."""
+        """``min_m quality_m(a)`` (float64, batched; ``theta`` broadcast against ``a``'s leading axes); 1 for a global chart."""
         a = np.asarray(a, dtype=float)
         cf = self.quality(float)
         if cf is None:
@@ -160,10 +217,19 @@ class CompiledFamily(ArtefactStore):
 
 
 def _batched(cf: Any, a: NDArray, theta: ArrayLike) -> NDArray:
-    """Evaluate a float64 cfunc of ``a`` over the leading axes of ``a`` (shape ``(..., k)``)."""
+    """Evaluate a float64 cfunc of ``a`` over the leading axes of ``a`` (shape ``(..., k)``).
+
+    ``theta`` (shape ``(n_params,)``, or ``(..., n_params)`` broadcast against
+    those axes) gives the runtime parameters of each evaluation.
+    """
+    lead = a.shape[:-1]
+    theta = np.asarray(theta, dtype=float)[..., : cf.nparams]
     flat = np.ascontiguousarray(a.reshape(-1, a.shape[-1]).T)
-    pars = np.repeat(np.asarray(theta, dtype=float)[: cf.nparams, None], flat.shape[1], axis=1)
-    return cf(flat, pars=pars).T.reshape(*a.shape[:-1], -1)
+    if theta.ndim == 1:  # one theta for all: no broadcasting (a start or a switch evaluates one point at a time)
+        pars = theta[:, None] if flat.shape[1] == 1 else np.repeat(theta[:, None], flat.shape[1], axis=1)
+    else:
+        pars = np.ascontiguousarray(np.broadcast_to(theta, (*lead, theta.shape[-1])).reshape(flat.shape[1], theta.shape[-1]).T)
+    return cf(flat, pars=pars).T.reshape(*lead, -1)
 
 
 _REGISTRY: dict[Hashable, CompiledFamily] = {}
@@ -206,6 +272,8 @@ class ChartNumerics:
         self.M_inv = as_fp(chart.inverse_linear_map(), fp_type)
         self.m = chart.offset(fp_type)
         self.pars = self.compiled.layout.pack(chart.family_parameters, chart.core_metric(K), q_out, fp_type)
+        for x in (self.M, self.M_inv, self.m, self.pars):  # shared by every solve on the chart (SymbolicChart.numerics)
+            x.flags.writeable = False
         self._cf = self.compiled.transfer(fp_type)
 
     def _eval(self, a: NDArray, c: NDArray, u: NDArray) -> NDArray:

@@ -20,7 +20,8 @@ class ChartFamily(ABC):
     """A family of chart maps ``z(a; theta)`` as heyoka expressions.
 
     A subclass implements :attr:`key`, :meth:`point_expressions` and
-    :meth:`quality_expressions`, and may implement :meth:`point_jets`.
+    :meth:`quality_expressions`, and may implement :meth:`point_jets` and
+    :meth:`inverse_expressions`.
     Equality of families is equality of keys: compiled code is cached per key.
 
     Attributes
@@ -61,6 +62,16 @@ class ChartFamily(ABC):
         A family that can run its formula on jets gets the geodesic equations
         from one forward sweep instead of symbolic differentiation of the
         expanded ``z``: much smaller for deep formulas.
+        """
+        return None
+
+    def inverse_expressions(self, z: Sequence[hy.expression], fp_type: Any) -> list[hy.expression] | None:
+        """The closed-form inverse ``a(z; theta)`` as expressions in the variables ``z``, or ``None`` (the default).
+
+        With it, :class:`~manifold.atlas.Atlas` ranks all the charts of an
+        atlas by one compiled evaluation (inverse and quality together) and
+        polishes only the charts that can win.  It need only be accurate
+        enough to rank: charts polish their parameters afterwards.
         """
         return None
 

@@ -41,6 +41,18 @@ class _NoGoodChart(Exception):
     """No chart has quality above ``q_out`` at a switch."""
 
 
+class _NumericsOnDemand(dict):
+    """Chart index -> :class:`~manifold.compiled.ChartNumerics`, each built when a solve first enters its chart."""
+
+    def __init__(self, charts: list, K: NDArray, q_out: float, fp_type: Any) -> None:
+        super().__init__()
+        self.charts, self.K, self.q_out, self.fp_type = charts, K, q_out, fp_type
+
+    def __missing__(self, i: int) -> Any:
+        self[i] = self.charts[i].numerics(self.K, self.q_out, self.fp_type)
+        return self[i]
+
+
 def solve_chart_exp_ode(
     metric: InducedMetric,
     p0: ArrayLike,
@@ -83,8 +95,9 @@ def solve_chart_exp_ode(
         The whole run -- integrator, transition maps, energies, ``sol(t)`` --
         is in this type.
     tol
-        Tolerance of the default Taylor stepper (``None``: heyoka's, the machine
-        epsilon of ``fp_type``); give it to the stepper instead when passing one.
+        Tolerance of the default Taylor stepper (``None``: 1e-14 in float64, the
+        machine epsilon of other types; :func:`manifold.compiled.default_tolerance`);
+        give it to the stepper instead when passing one.
     q_out
         Switch threshold on chart quality, in ``(0, 1)``; default ``atlas.switch_threshold``.
     switching
@@ -231,7 +244,7 @@ def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_
         p0, v0 = atlas.get_point(chart, a0), atlas.charts[chart].tangent_vector(a0, c0)
     p0, v0 = _as_vector(p0, "p0", atlas.ambient_dim), _as_vector(v0, "v0", atlas.ambient_dim)
 
-    numerics = {k: ch.numerics(metric.K, q_out, fp_type) for k, ch in enumerate(atlas.charts)}
+    numerics = _NumericsOnDemand(atlas.charts, metric.K, q_out, fp_type)
     sol = GeodesicSolution(metric, fp_type, stepper.name, (0.0, t_final), numerics)
     if grid is not None:
         sol.t_eval = grid
@@ -268,10 +281,9 @@ def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t: Any, q_out
     p, v, _ = num[i].point_velocity_energy(a[:, None], c[:, None])
     p, v = p[0], v[0]
     q_from = float(atlas.charts[i].quality(a.astype(float)))
-    j, a_j = atlas.best_chart(p.astype(float))
-    j = int(j)  # one point: one index
+    j, a_j, q_to = atlas.chart_choice(p.astype(float))
+    j, q_to = int(j), float(q_to)  # one point: one index, one quality
     a_j = num[j].polish(as_fp(a_j, sol.fp_type), p)
-    q_to = float(atlas.charts[j].quality(a_j.astype(float)))
     if q_to <= q_out:
         raise _NoGoodChart(f"no chart of quality above q_out = {q_out} at t = {t} (best {q_to:.3g})")
     p_j = num[j].point_velocity_energy(a_j[:, None], np.zeros((len(a_j), 1)))[0][0]

@@ -26,11 +26,11 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from .compiled import CompiledFamily
+from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily, default_tolerance
 from .precision import is_double, unit_roundoff
 from .progress import step_callback
 from .solution import CallableDense, DenseOutput, TaylorDense
-from .validation import check_real
+from .validation import check_bool, check_index, check_real
 
 #: Largest accepted tolerance: looser runs are not geodesics (``tol = 1`` gave a 21 % energy error).
 MAX_TOLERANCE = 1e-2
@@ -92,24 +92,36 @@ class TaylorStepper(Stepper):
     Parameters
     ----------
     tol
-        heyoka's tolerance; ``None`` is its default, the machine epsilon of ``fp_type``.
+        heyoka's tolerance; ``None`` is :func:`~manifold.compiled.default_tolerance`:
+        1e-14 in float64 (as accurate as the machine epsilon there, and 16-29 %
+        cheaper), the machine epsilon of other types.
+    compact_mode, opt_level
+        heyoka's compile options: compact mode (a loop over the decomposition
+        instead of straight-line code) and LLVM's optimisation level, 0 to 3.
+        Straight-line code steps 3.4x faster at n = 3 but compiled for 185 s
+        (n = 4: over 900 s), once per machine with heyoka's disk cache; the
+        default ``opt_level`` 1 steps 13-16 % faster than 3 and compiles ~2x
+        faster (``benchmarks/taylor_options.py``).
     """
 
     name = "taylor"
 
-    def __init__(self, tol: float | None = None) -> None:
+    def __init__(self, tol: float | None = None, *, compact_mode: bool = True,
+                 opt_level: int = DEFAULT_OPT_LEVEL) -> None:
         self.tol = None if tol is None else check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
+        self.compact_mode = check_bool("compact_mode", compact_mode)
+        self.opt_level = check_index("opt_level", opt_level, 4)
 
     def relative_tolerance(self, fp_type: Any) -> float:
-        return taylor_relative_tolerance(self.tol, fp_type)
+        return taylor_relative_tolerance(default_tolerance(fp_type) if self.tol is None else self.tol, fp_type)
 
     def __repr__(self) -> str:
-        return f"TaylorStepper(tol={self.tol!r})"
+        return f"TaylorStepper(tol={self.tol!r}, compact_mode={self.compact_mode}, opt_level={self.opt_level})"
 
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
                 switching: bool) -> Iterator[AdvanceFunction]:
-        with family.integrator(fp_type, self.tol, form, backward) as ta:
+        with family.integrator(fp_type, self.tol, form, backward, self.compact_mode, self.opt_level) as ta:
             yield lambda t, y, t_final, pars, dense: taylor_advance(ta, t, y, t_final, pars, dense, fp_type)
 
 
@@ -123,7 +135,7 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
 
     Shared by every Taylor method (chart geodesics, constrained motion): sets
     state, time and parameters, resets the event cooldowns, propagates, and
-    reads heyoka's continuous output into a :class:`TaylorDense` when ``dense``.
+    keeps each step's Taylor coefficients in a :class:`TaylorDense` when ``dense``.
     """
     ta.state[:] = y
     ta.time = t
@@ -131,8 +143,18 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     n_events = len(ta.t_events) if ta.with_events else 0
     if n_events:
         ta.reset_cooldowns()
-    # the progress callback (None unless asked) only reads the integrator: results are the same with or without it
-    outcome, _, _, n_steps, cout, *_ = ta.propagate_until(t_final, c_output=dense, callback=step_callback())
+    progress = step_callback()  # None unless asked; it only reads the integrator: results are the same without it
+    step_times, tcs = [ta.time], []
+
+    def record(ta: Any) -> bool:
+        tcs.append(ta.tc.copy())
+        step_times.append(ta.time)
+        return progress is None or progress(ta)
+
+    # The Taylor coefficients of each step, kept by a step callback: heyoka's c_output gives the same numbers
+    # but builds a continuous_output (an LLVM state) on every call, ~2.5 ms per segment.
+    callback = record if dense else progress
+    outcome, _, _, n_steps, *_ = ta.propagate_until(t_final, callback=callback, write_tc=dense)
     y_end = np.array(ta.state)
     event, failure = None, None
     if outcome != hy.taylor_outcome.time_limit:
@@ -140,8 +162,8 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
         if not 0 <= event < n_events:
             event, failure = None, str(outcome)
     out = None
-    if dense and cout is not None and n_steps > 0:
-        out = TaylorDense(np.array(cout.times), np.array(cout.tcs), fp_type)
+    if dense and n_steps > 0:
+        out = TaylorDense(np.array(step_times), np.array(tcs), fp_type)
         times = out.times[1:]
         states = np.concatenate([out.tcs[1:, :, 0], y_end[None, :]])  # a step's order-0 term is its start
     else:

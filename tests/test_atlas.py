@@ -148,7 +148,9 @@ def test_best_chart_returns_the_best_index_and_its_parameters(case):
     p = _random_point(n, L, a, order)
     i, ai = atlas.best_chart(p)
     assert i == int(np.argmax([c.quality(c.get_parameters(p)) for c in atlas.charts]))
-    np.testing.assert_array_equal(ai, atlas.charts[i].get_parameters(p))
+    a_full = atlas.charts[i].get_parameters(p)  # equal up to the polish (best_chart inverts all charts in one batch)
+    tol = 1e-12 * folded_conditioning(n, L)
+    assert np.abs(atlas.get_point(i, ai) - p).max() <= tol and np.abs(atlas.get_point(i, a_full) - p).max() <= tol
 
 
 def test_a_chart_that_does_not_contain_the_point_has_no_quality():

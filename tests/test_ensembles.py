@@ -100,7 +100,7 @@ def test_ensembles_agree_with_single_calls_across_chains(n, data, count, backwar
     solve's own rounding error: below 1e-12 where that is (the test above),
     a few times the energy error where the hinge equations lose digits
     (``L`` within 1e-2 of ``n``: measured gap / energy error <= 5).  A solve
-    that passes its checks alone with a margin passes them in a batch.
+    that passes its checks alone with a margin of 10 passes them in a batch.
     """
     L = data.draw(base_lengths(n))
     rng = np.random.default_rng(seed)
@@ -112,9 +112,11 @@ def test_ensembles_agree_with_single_calls_across_chains(n, data, count, backwar
     singles = _singles(chain, H, V, T, ts, method="hinges", **FAST)
     ens = free_motions(chain, H, V, T, t_eval=ts, backend="threads", **FAST)
     for k, s in enumerate(singles):
-        # the batch checks fewer states (the grid and the end), rounded differently: at the edge of the bound
-        # either may fail; with a margin of 2 both pass
-        if not s.relative_energy_error <= 0.5 * energy_bound(s.n_steps, 2.0**-52):
+        # the batch checks fewer states (the grid and the end), rounded differently: near the bound either may
+        # fail.  Where the hinge equations lose digits the two scatter independently: at n = 3, L = n - 5.6e-4,
+        # 32 starts gave energy errors of median 1.9e-11 (scalar) and 1.6e-11 (SIMD lanes), one start 7.1e-12
+        # alone and 4.8e-11 in a lane.  With a margin of 10 both pass.
+        if not s.relative_energy_error <= 0.1 * energy_bound(s.n_steps, 2.0**-52):
             continue
         assert ens.success[k], ens.messages[k]
         tol = max(1e-12, 100 * s.relative_energy_error)

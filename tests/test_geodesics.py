@@ -10,7 +10,7 @@ from charts import SuspensionChart
 from linkage import Chain
 from linkage.ambient import integrate_ambient
 from linkage.motion import free_motion
-from manifold import ScipyStepper, solve_chart_exp_ode
+from manifold import ScipyStepper, TaylorStepper, solve_chart_exp_ode
 
 HALF_PI = np.pi / 2
 
@@ -73,6 +73,18 @@ def test_embedded_and_christoffel_forms_agree():
     assert emb.n_switches >= 1
     ts = np.linspace(0, 10, 41)
     assert np.abs(emb(ts)[0] - chr_(ts)[0]).max() <= 1e-9
+
+
+def test_compile_options_change_the_cost_not_the_geodesic():
+    """LLVM's optimisation level reaches heyoka (opt_level 0 is measurably slower, benchmarks/taylor_options.py)
+    and leaves the motion alone: the same geodesic through the same switches."""
+    chain = Chain(4, 3.1)
+    p0, v0 = start(chain, [1.2, 0.3], [1.0, 0.2])
+    ref = solve_chart_exp_ode(chain.metric(), p0, v0, 10.0, stepper=TaylorStepper(opt_level=3))
+    low = solve_chart_exp_ode(chain.metric(), p0, v0, 10.0, stepper=TaylorStepper(opt_level=0))
+    assert low.n_switches == ref.n_switches >= 1
+    ts = np.linspace(0, 10, 41)
+    assert np.abs(low(ts)[0] - ref(ts)[0]).max() <= 1e-12
 
 
 @pytest.mark.parametrize("n, L", [(4, 2.05), (5, 4.6), (6, 4.4)])

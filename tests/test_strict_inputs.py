@@ -32,6 +32,19 @@ def test_tolerances_outside_their_range_are_refused(start, tol):
         ScipyStepper("DOP853", rtol=tol)
 
 
+@pytest.mark.parametrize("kw, error, match", [
+    ({"compact_mode": "yes"}, TypeError, "compact_mode must be True or False"),
+    ({"compact_mode": 1}, TypeError, "compact_mode must be True or False"),
+    ({"opt_level": 4}, ValueError, r"opt_level must be an integer in \[0, 3\], got 4"),
+    ({"opt_level": -1}, ValueError, r"opt_level must be an integer in \[0, 3\]"),
+    ({"opt_level": 2.0}, TypeError, r"opt_level must be an integer in \[0, 3\]"),
+    ({"opt_level": True}, TypeError, r"opt_level must be an integer in \[0, 3\]"),
+])
+def test_compile_options_of_the_taylor_stepper_are_checked(kw, error, match):
+    with pytest.raises(error, match=match):
+        TaylorStepper(**kw)
+
+
 @pytest.mark.parametrize("kw, match", [
     ({"tangent_tol": np.nan}, "tangent_tol"), ({"tangent_tol": np.inf}, "tangent_tol"),
     ({"max_switches": 0}, "max_switches"), ({"max_switches": 1.5}, "max_switches"),

@@ -1,0 +1,164 @@
+"""The Taylor stepper's defaults, chosen by measurement: compile options, then tolerance.
+
+Run ``python -m benchmarks.taylor_options`` (about 20 minutes on 2 cores).  For each n (unit masses,
+``L = n - 1.3``, the unit-speed generic start of the study):
+
+1. **Compile options** of the float64 integrator: compact mode with LLVM ``opt_level`` 0..3, and
+   straight-line code (``compact_mode=False``, against compact mode in a subprocess under ``--timeout``,
+   for the n in ``--full-n``).  Columns: cold compile (heyoka's disk cache off), compile again from a
+   populated disk cache (what every later process pays), CPU time of a run to ``T`` (the least of 5, the
+   options taking turns) and its ratio to compact mode at ``opt_level`` 3.
+2. **Tolerance** at the default compile options: CPU time, final hinge error against a long-double
+   reference (tol 1e-19) and relative energy error, for tol 1e-12 .. eps.
+3. **real128** at n = 4 over ``--real128-T`` with compact mode at each ``opt_level``.
+
+CPU time of this process, not wall time: the machine is shared.  Compare the ratios printed side by side.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+
+import heyoka as hy
+import numpy as np
+
+from manifold import TaylorStepper, compiled, solve_chart_exp_ode
+
+from .study.experiments import generic_start
+
+COMPACT_OPTIONS = [(True, 3), (True, 2), (True, 1), (True, 0)]
+EPS = float(np.finfo(float).eps)
+TOLERANCES = [1e-12, 1e-13, 1e-14, 1e-15, EPS]
+
+
+def _rebuild(family, fp_type, compact: bool, opt_level: int) -> float:
+    """Seconds to build the integrator after forgetting every in-memory copy."""
+    compiled(family).clear()
+    hy.llvm_state.clear_memcache()
+    t0 = time.perf_counter()
+    with compiled(family).integrator(fp_type, compact_mode=compact, opt_level=opt_level):
+        pass
+    return time.perf_counter() - t0
+
+
+def compile_times(n: int, compact: bool, opt_level: int, fp_type=float) -> tuple[float, float]:
+    """(cold, from a populated disk cache) wall seconds to build the integrator.
+
+    Needs heyoka's disk cache pointed at a scratch directory (as :func:`main` does); leaves it enabled,
+    so that the runs after fetch their code from it.
+    """
+    family = generic_start(n)[0].atlas().charts[0].family
+    hy.llvm_state.set_diskcache_enabled(False)
+    cold = _rebuild(family, fp_type, compact, opt_level)
+    hy.llvm_state.set_diskcache_enabled(True)
+    _rebuild(family, fp_type, compact, opt_level)  # populate
+    return cold, _rebuild(family, fp_type, compact, opt_level)
+
+
+def run_cpu(n: int, T: float, steppers: list, fp_type=float, repeat: int = 5) -> list[tuple[float, object]]:
+    """Per stepper: the least CPU time of ``repeat`` solves to ``T`` (compiled beforehand; the steppers take turns,
+    so that the load of a shared machine hits all alike) and the last solution."""
+    chain, p0, v0 = generic_start(n, seed=1)
+    metric = chain.metric()
+    for st in steppers:
+        solve_chart_exp_ode(metric, p0, v0, 0.01, stepper=st, fp_type=fp_type)  # compile, warm the caches
+    best, sols = [np.inf] * len(steppers), [None] * len(steppers)
+    for _ in range(repeat):
+        for k, st in enumerate(steppers):
+            t0 = time.process_time()
+            sols[k] = solve_chart_exp_ode(metric, p0, v0, T, stepper=st, fp_type=fp_type, dense=False)
+            best[k] = min(best[k], time.process_time() - t0)
+    return list(zip(best, sols))
+
+
+def options_for(n: int, options: list, T: float) -> list[dict]:
+    """Compile times and run CPU time of each ``(compact, opt_level)`` option, the runs side by side."""
+    compile_s = [compile_times(n, compact, opt) for compact, opt in options]
+    runs = run_cpu(n, T, [TaylorStepper(compact_mode=c, opt_level=o) for c, o in options])
+    return [{"compact": c, "opt": o, "cold": cold, "cached": cached, "cpu": cpu, "steps": sol.n_steps}
+            for (c, o), (cold, cached), (cpu, sol) in zip(options, compile_s, runs)]
+
+
+def _in_subprocess(n: int, T: float, timeout: float) -> list[dict] | None:
+    """Straight-line code against compact mode (opt 3) in a fresh process, under a time limit."""
+    cmd = [sys.executable, "-m", "benchmarks.taylor_options", "--one", str(n), "--T", str(T)]
+    try:
+        out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, check=True)
+    except subprocess.TimeoutExpired:
+        return None
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def tolerance_sweep(n: int, T: float, compact: bool, opt_level: int) -> list[dict]:
+    chain, p0, v0 = generic_start(n, seed=1)
+    ref = solve_chart_exp_ode(chain.metric(), p0, v0, T, fp_type=np.longdouble, tol=1e-19, dense=False)
+    p_ref = ref.end_state()[0].astype(float)
+    runs = run_cpu(n, T, [TaylorStepper(tol, compact_mode=compact, opt_level=opt_level) for tol in TOLERANCES])
+    return [{"tol": tol, "cpu": cpu, "steps": sol.n_steps, "switches": sol.n_switches,
+             "hinge_error": float(np.abs(sol.end_state()[0] - p_ref).max()), "energy_error": sol.relative_energy_error}
+            for tol, (cpu, sol) in zip(TOLERANCES, runs)]
+
+
+def _show(n: int, rows: list[dict]) -> None:
+    base = next(r["cpu"] for r in rows if r["compact"] and r["opt"] == 3)
+    for r in rows:
+        print(f"{n:>2} {str(r['compact']):>7} {r['opt']:>3} {r['cold']:8.2f} {r['cached']:8.2f} {r['cpu']:8.4f} "
+              f"{r['steps']:>6} {r['cpu'] / base:6.2f}", flush=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, nargs="+", default=[4, 6, 8])
+    parser.add_argument("--T", type=float, default=20.0)
+    parser.add_argument("--full-n", type=int, nargs="*", default=[3, 4], help="n at which compact_mode=False is tried")
+    parser.add_argument("--timeout", type=float, default=900.0, help="seconds allowed to one compact_mode=False trial")
+    parser.add_argument("--real128-T", type=float, default=10.0)
+    parser.add_argument("--one", type=int, metavar="N", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as cache:  # a scratch disk cache: the user's is left alone
+        hy.llvm_state.set_diskcache_path(cache)
+        if args.one:
+            print(json.dumps(options_for(args.one, [(False, 3), (True, 3)], args.T)))
+        else:
+            report(args)
+
+
+def report(args: argparse.Namespace) -> None:
+    """The three tables of the module docstring."""
+    print(f"1. compile options (float64, run to T = {args.T:g}; run = least CPU time of 5, options in turn; "
+          "ratio = run / run at compact, opt 3)")
+    print(f"{'n':>2} {'compact':>7} {'opt':>3} {'cold s':>8} {'cached s':>8} {'run s':>8} {'steps':>6} {'ratio':>6}")
+    for n in args.n:
+        _show(n, options_for(n, COMPACT_OPTIONS, args.T))
+    for n in args.full_n:
+        rows = _in_subprocess(n, args.T, args.timeout)
+        if rows is None:
+            print(f"{n:>2}   False   3   did not compile and run within {args.timeout:g} s", flush=True)
+        else:
+            _show(n, rows)
+
+    default = TaylorStepper()
+    print(f"\n2. tolerance ({default!r} otherwise; final hinge error against long double at tol 1e-19; CPU time as above)")
+    print(f"{'n':>2} {'tol':>7} {'run s':>8} {'steps':>6} {'switches':>8} {'hinge err':>9} {'dE/E':>8}")
+    for n in args.n:
+        for r in tolerance_sweep(n, args.T, default.compact_mode, default.opt_level):
+            tol = "eps" if r["tol"] == EPS else f"{r['tol']:.0e}"
+            print(f"{n:>2} {tol:>7} {r['cpu']:8.4f} {r['steps']:>6} {r['switches']:>8} {r['hinge_error']:9.1e} "
+                  f"{r['energy_error']:8.1e}", flush=True)
+
+    print(f"\n3. real128, n = 4, T = {args.real128_T:g} (compact mode; cold compile, disk cache off; one run each, CPU time)")
+    print(f"{'opt':>3} {'compile s':>9} {'run s':>8} {'steps':>6} {'dE/E':>8}")
+    builds = [compile_times(4, True, opt, hy.real128)[0] for _, opt in COMPACT_OPTIONS]
+    steppers = [TaylorStepper(opt_level=opt) for _, opt in COMPACT_OPTIONS]
+    runs = run_cpu(4, args.real128_T, steppers, hy.real128, repeat=1)
+    for (_, opt), build, (cpu, sol) in zip(COMPACT_OPTIONS, builds, runs):
+        print(f"{opt:>3} {build:9.2f} {cpu:8.2f} {sol.n_steps:>6} {sol.relative_energy_error:8.1e}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
