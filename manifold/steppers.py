@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily, default_tolerance
+from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
 from .precision import is_double, unit_roundoff
 from .progress import step_callback
 from .solution import CallableDense, DenseOutput, TaylorDense
@@ -94,7 +94,8 @@ class TaylorStepper(Stepper):
     tol
         heyoka's tolerance; ``None`` is :func:`~manifold.compiled.default_tolerance`:
         1e-14 in float64 (as accurate as the machine epsilon there, and 16-29 %
-        cheaper), the machine epsilon of other types.
+        cheaper), the machine epsilon of other types.  The energy check holds
+        the default to the machine epsilon's bound, a given ``tol`` to its own.
     compact_mode, opt_level
         heyoka's compile options: compact mode (a loop over the decomposition
         instead of straight-line code) and LLVM's optimisation level, 0 to 3.
@@ -113,7 +114,9 @@ class TaylorStepper(Stepper):
         self.opt_level = check_index("opt_level", opt_level, 4)
 
     def relative_tolerance(self, fp_type: Any) -> float:
-        return taylor_relative_tolerance(default_tolerance(fp_type) if self.tol is None else self.tol, fp_type)
+        # The default tolerance is chosen to be as accurate as the machine epsilon, and is held to that: judged by
+        # its own 1e-14, a run at n = 3, L = 1 + 4e-7 returned an energy error of 2.8e-10 as a success
+        return taylor_relative_tolerance(self.tol, fp_type)
 
     def __repr__(self) -> str:
         return f"TaylorStepper(tol={self.tol!r}, compact_mode={self.compact_mode}, opt_level={self.opt_level})"

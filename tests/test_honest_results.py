@@ -58,6 +58,22 @@ def test_energy_blow_up_near_the_fold_is_never_a_success():
             assert err.value.solution.n_steps > 0  # the partial solution comes with it
 
 
+
+def test_the_default_tolerance_is_held_to_the_machine_epsilon():
+    """The default float64 tolerance (1e-14) is chosen as accurate as the machine epsilon; judged by a 1e-14 bound,
+    this start near a fold (found by ``benchmarks/honesty_fuzz.py``) returned an energy error of 2.8e-10 as a
+    success.  Held to the machine epsilon's bound it fails its check; a tolerance given explicitly is judged by itself."""
+    chain = Chain(3, 1 + 4.1221618291727637e-07, hinge_masses=[0.22977111383213283, 0.16323152973240146])
+    a = np.array([0.2874486844739179])
+    h0 = chain.from_point(chain.atlas().get_point(0, a))
+    v0 = chain.from_point(chain.atlas().charts[0].tangent_vector(a, np.array([1.763759069559374])))
+    v0 = v0 / np.sqrt(2 * chain.kinetic_energy(v0))
+    motion = free_motion(chain, h0, v0, 2.0, throw=False)
+    assert not motion.success or motion.relative_energy_error <= 1e-10
+    assert motion.solution.status is SolveStatus.ENERGY_CHECK_FAILED
+    explicit = free_motion(chain, h0, v0, 2.0, throw=False, tol=1e-14)
+    assert explicit.success  # (1000 sqrt(steps + 1) + 1e5) 1e-14 = 1e-9 lets it pass: the user asked for 1e-14
+
 @settings(max_examples=20, deadline=None)
 @given(n=st.integers(3, 8), end=st.sampled_from(["low", "high"]), gap_exp=st.floats(-12, -3),
        masses=st.sampled_from(["unit", "spread"]), seed=st.integers(0, 2**16),

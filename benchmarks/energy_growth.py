@@ -1,0 +1,109 @@
+"""Where energy errors come from: unequal masses, and long runs.
+
+Run ``python -m benchmarks.energy_growth [--quick] [--long]``.  Prints:
+
+1. **Unequal masses.**  Relative energy error over T = 20 of both methods for
+   hinge masses equal, spread over 1e-3..1e2 and spread the other way (n = 4
+   and 6, four generic unit-speed starts each), with the wall time of the
+   four runs.  The hinge method is also run in long double; the chart method
+   at the float64 machine epsilon as tolerance, in float64 and in long double:
+   if long double at the *same* tolerance errs as much, the error is the
+   integrator's truncation (its error control), not rounding.
+2. **Long runs** (n = 4, L = 2.5, several starts): the energy error of the
+   solver's own record and of the hinge velocities (chart-free: ``1/2 v^T K v``
+   in float64) at 1 %, 10 % and 100 % of T, the median over starts, and the
+   log-log slope per decade (Brouwer's law, rounding as a random walk: 0.5;
+   a systematic error: 1).  ``--long`` runs T = 1.2e5 (the issue's run; about
+   ten minutes per chart-method start), otherwise T = 1.2e4.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from linkage import Chain
+from linkage.motion import free_motion
+
+EPS = float(np.finfo(float).eps)
+
+
+def _starts(chain: Chain, count: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``count`` unit-energy starts (complex hinges and hinge velocities) at random chart-0 parameters."""
+    atlas, rng, out = chain.atlas(), np.random.default_rng(0), []
+    for _ in range(count):
+        a = np.append(rng.uniform(-1.2, 1.2, chain.n - 3), rng.uniform(-np.pi, np.pi))
+        h0 = chain.from_point(atlas.get_point(0, a))
+        v0 = chain.from_point(atlas.charts[0].tangent_vector(a, rng.normal(size=chain.n - 2)))
+        out.append((h0, v0 / np.sqrt(2 * chain.kinetic_energy(v0))))
+    return out
+
+
+def unequal_masses(ns: list[int], count: int, T: float = 20.0) -> None:
+    """Section 1."""
+    print(f"1. relative energy error over T = {T:g}, {count} generic unit-speed starts (max over the run, per start)")
+    for n in ns:
+        for label, masses in (("equal", np.ones(n - 1)), ("1e-3..1e2", np.geomspace(1e-3, 1e2, n - 1)),
+                              ("1e2..1e-3", np.geomspace(1e2, 1e-3, n - 1))):
+            chain = Chain(n, n - 1.5, hinge_masses=masses)
+            rows = {"hinges": {"method": "hinges"}, "hinges, long double": {"method": "hinges", "fp_type": np.longdouble},
+                    "charts": {"method": "charts"},
+                    "charts, tol eps": {"method": "charts", "tol": EPS},
+                    "charts, tol eps, long double": {"method": "charts", "tol": EPS, "fp_type": np.longdouble}}
+            for name, kw in rows.items():
+                errs, wall = [], 0.0
+                for h0, v0 in _starts(chain, count):
+                    free_motion(chain, h0, v0, 0.01, **kw)  # compile outside the timing
+                    t0 = time.perf_counter()
+                    errs.append(free_motion(chain, h0, v0, T, dense=False, throw=False, **kw).relative_energy_error)
+                    wall += time.perf_counter() - t0
+                print(f"  n = {n}, masses {label:9s}  {name:28s} " + "  ".join(f"{e:.1e}" for e in errs)
+                      + f"   ({wall:.2f} s)")
+
+
+def long_runs(T: float, count: int, methods: tuple[str, ...] = ("charts", "hinges")) -> None:
+    """Section 2."""
+    chain = Chain(4, 2.5)
+    fractions = np.array([0.01, 0.1, 1.0])
+    print(f"2. long runs, n = 4, L = 2.5, T = {T:g}, {count} starts: energy error at 1 %, 10 % and 100 % of T")
+    for method in methods:
+        record, ambient = [], []
+        for k, (h0, v0) in enumerate(_starts(chain, count)):
+            t0 = time.perf_counter()
+            m = free_motion(chain, h0, v0, T, method=method, dense=False, t_eval=T * fractions)
+            E0 = float(chain.kinetic_energy(v0))
+            times = np.array([float(t) for t in m.solution.energy_times])
+            E = np.array([float(e) for e in m.solution.energies])
+            dev = np.maximum.accumulate(np.abs(E - E[0]) / E[0])  # running maximum of the solver's own record
+            record.append([dev[np.searchsorted(times, f * T, side="right") - 1] for f in fractions])
+            ambient.append(np.abs(m.energies - E0) / E0)
+            print(f"  {method}, start {k}: record {'  '.join(f'{x:.1e}' for x in record[-1])};  hinge velocities "
+                  f"{'  '.join(f'{x:.1e}' for x in ambient[-1])}  ({m.n_steps} steps, {m.n_switches} switches, "
+                  f"{time.perf_counter() - t0:.0f} s)")
+        for name, data in (("record", record), ("hinge velocities", ambient)):
+            med = np.median(np.array(data), axis=0)
+            slope = np.polyfit(np.log10(fractions), np.log10(np.maximum(med, EPS / 4)), 1)[0]
+            print(f"  {method}: median of the {name}: {'  '.join(f'{x:.1e}' for x in med)};  slope {slope:.2f} per decade")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="n = 4 only, two starts, T = 1.2e3")
+    ap.add_argument("--long", action="store_true", help="T = 1.2e5 for the long runs (the issue's run)")
+    ap.add_argument("--starts", type=int, default=None, help="starts of the long runs (default 6, with --long 3)")
+    ap.add_argument("--sections", default="12", help="which sections to run, e.g. 2")
+    args = ap.parse_args()
+    if args.quick:
+        unequal_masses([4], 2)
+        long_runs(1.2e3, 2)
+        return
+    if "1" in args.sections:
+        unequal_masses([4, 6], 4)
+    if "2" in args.sections:
+        long_runs(1.2e5 if args.long else 1.2e4, args.starts or (3 if args.long else 6))
+
+
+if __name__ == "__main__":
+    main()
