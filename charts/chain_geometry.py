@@ -10,6 +10,7 @@ the interleaved real vector ``(x_1, y_1, ..., x_{n-1}, y_{n-1})``.
 from __future__ import annotations
 
 import numbers
+from fractions import Fraction
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -37,6 +38,52 @@ def validate_chain(n: object, L: object) -> tuple[int, float]:
     if not (n - 2 < Lf < n):
         raise ValueError(message)
     return int(n), Lf
+
+
+def sphere_range(lengths: ArrayLike) -> tuple[float, float]:
+    """``(R - 2 mu, R)``: the open range of ``L`` where the base is the dominant side of the polygon
+    ``(l_1, ..., l_n, L)`` (``R = l_1 + ... + l_n``, ``mu = min l_k``), and the space the sphere ``S^(n-2)``.
+
+    ``L < P/2 < L + l_k`` for every ``k`` (``P = R + L``) is ``R - 2 mu < L < R``; for unit rods ``n - 2 < L < n``.
+    The ends are rounded to float64; :func:`validate_sphere_chain` decides membership exactly.
+    """
+    ls = [Fraction(float(x)) for x in np.asarray(lengths, dtype=float).ravel()]
+    R = sum(ls)
+    return float(R - 2 * min(ls)), float(R)
+
+
+def validate_sphere_chain(lengths: object, L: object) -> tuple[NDArray, float]:
+    """Check that links ``lengths`` pinned ``L`` apart have the sphere ``S^(n-2)`` with ``L`` dominant.
+
+    ``lengths`` is an integer ``n`` (unit rods: :func:`validate_chain`, ``n-2 < L < n``)
+    or a sequence of at least 2 finite lengths ``> 0``; ``L`` must lie in the
+    open :func:`sphere_range` ``R - 2 mu < L < R``, decided exactly (in rationals:
+    a float64 sum of the lengths could misjudge an ``L`` within rounding of an end).
+    Returns ``(lengths as a float array, float(L))``; raises ``ValueError`` naming the
+    bad value and the valid range.
+    """
+    if np.ndim(lengths) == 0:
+        n, Lf = validate_chain(lengths, L)
+        return np.ones(n), Lf
+    try:
+        ls = np.asarray(lengths, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"lengths must be an integer n >= 2 or a sequence of positive finite numbers, "
+                         f"got {lengths!r}") from None
+    if ls.ndim != 1 or ls.size < 2 or not np.all(np.isfinite(ls)) or not np.all(ls > 0):
+        raise ValueError(f"lengths must be a sequence of at least 2 finite numbers > 0, got {lengths!r}")
+    lo, hi = sphere_range(ls)
+    message = (f"L must be a finite real number with {lo!r} < L < {hi!r} (R - 2 min l < L < R, R = sum of the "
+               f"lengths: the range where the configuration space of links {tuple(float(x) for x in ls)} is the "
+               f"sphere S^{ls.size - 2} with L its dominant side), got L = {L!r}")
+    try:
+        Lf = check_real("L", L)
+    except ValueError:
+        raise ValueError(message) from None
+    q, R = Fraction(Lf), sum(Fraction(float(x)) for x in ls)
+    if not (R - 2 * Fraction(float(ls.min())) < q < R):
+        raise ValueError(message)
+    return ls, Lf
 
 
 def to_real(hinges: ArrayLike) -> NDArray:

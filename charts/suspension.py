@@ -30,8 +30,8 @@ from .chain_geometry import (
     to_complex,
     to_real,
     unlabel_hinges,
-    validate_chain,
     validate_permutation,
+    validate_sphere_chain,
 )
 from .suspension_symbolic import SuspensionFamily
 
@@ -45,12 +45,18 @@ QUALITY_FLOOR = {2: 1.0, 3: 0.8, 4: 0.6, 5: 0.6, 6: 0.6, 7: 0.6, 8: 0.6}
 
 
 class SuspensionChart(SymbolicChart):
-    """Iterated-suspension chart of ``n`` unit rods pinned at ``0`` and ``L``.
+    """Iterated-suspension chart of a chain of ``n`` links pinned at ``0`` and ``L``, ``L`` the dominant side.
 
     Parameters
     ----------
-    n, L
-        Number of rods (``>= 2``) and base length (``n-2 < L < n``).
+    lengths
+        An integer ``n >= 2`` (``n`` unit rods) or the link lengths ``l_1 .. l_n``
+        (``n >= 2``, each ``> 0``), in the chain's own order.
+    L
+        Base length, the dominant side: ``R - 2 mu < L < R`` (``R`` the sum of the
+        lengths, ``mu`` the shortest; ``n-2 < L < n`` for unit rods), where the
+        configuration space is the sphere ``S^(n-2)``
+        (:func:`charts.chain_geometry.validate_sphere_chain`).
     order
         Rod order: the chart's k-th rod is rod ``order[k]`` (default identity).
         The chart is singular where rods ``order[0], order[1], order[2]`` point
@@ -65,10 +71,16 @@ class SuspensionChart(SymbolicChart):
     ``quality(a) = min(cos(phi_n), ..., cos(phi_4), q_A, q_B)``: 0 at the poles (three rods of
     the order stretched in a line), at the fold of the first two rods (``q_A``) and at the
     folded triple (``q_B``), see :func:`charts.suspension_formula.fold_qualities`.
+    Unit rods compile :class:`SuspensionFamily` ``(n)`` (``theta = (L,)``); other
+    lengths ``SuspensionFamily(n, lengths=True)``, whose runtime parameters carry
+    the lengths in chart order: one compiled family for every length vector.
     """
 
-    def __init__(self, n: int, L: float, order: ArrayLike | None = None, sheet: int = 1) -> None:
-        self.n, self.L = validate_chain(n, L)
+    def __init__(self, lengths: int | ArrayLike, L: float, order: ArrayLike | None = None, sheet: int = 1) -> None:
+        ls, self.L = validate_sphere_chain(lengths, L)
+        ls.flags.writeable = False
+        self.lengths, self.n = ls, ls.size
+        self.unit_rods = bool(np.all(ls == 1.0))
         self.order = validate_permutation(np.arange(self.n) if order is None else order, self.n)
         if sheet not in (1, -1):
             raise ValueError(f"sheet must be +1 or -1, got {sheet!r}")
@@ -77,9 +89,17 @@ class SuspensionChart(SymbolicChart):
         self.ambient_dim = 2 * (self.n - 1)
         #: ``M`` of ``p = M z + m``: chart-order hinges ``z`` to own-order hinges ``p`` (interleaved real).
         self.linear_map = np.kron(relabel_matrix(self.order), np.eye(2))
+        chart_lengths = ls[self.order]
+        if self.unit_rods:
+            self.rods = formula.Rods.unit(self.n)
+            theta = [self.L]
+        else:
+            slacks = formula.top_slacks(chart_lengths, self.L)
+            self.rods = formula.Rods([float(x) for x in chart_lengths], NUMPY, slacks)
+            theta = [self.L, *chart_lengths, *slacks]
         if self.n >= 3:
-            self.family = SuspensionFamily(self.n)
-            self.family_parameters = np.array([self.L])
+            self.family = SuspensionFamily(self.n, lengths=not self.unit_rods)
+            self.family_parameters = np.array(theta)
 
     def offset(self, fp_type: type = float) -> NDArray:
         """``m = p(z = 0)``: the relabeling's constant part, a multiple of ``L`` (exact in ``fp_type``)."""
@@ -87,7 +107,8 @@ class SuspensionChart(SymbolicChart):
         return as_fp(unit, fp_type) * as_fp(self.L, fp_type)
 
     def __repr__(self) -> str:
-        return f"SuspensionChart(n={self.n}, L={self.L!r}, order={self.order.tolist()})"
+        chain = f"n={self.n}" if self.unit_rods else f"lengths={tuple(float(x) for x in self.lengths)}"
+        return f"SuspensionChart({chain}, L={self.L!r}, order={self.order.tolist()})"
 
     # -- parameters -----------------------------------------------------------
     def check_parameters(self, a: ArrayLike) -> NDArray:
@@ -117,7 +138,7 @@ class SuspensionChart(SymbolicChart):
         if self.n > 2:
             return super().get_point(a)
         a = self.check_parameters(a)  # S^0: the elbow of the given sheet
-        z = formula.hinges([], self.L, NUMPY, self.sheet)[0]
+        z = formula.hinges([], self.L, NUMPY, self.sheet, self.rods)[0]
         return np.broadcast_to(to_real(np.array([z.re + 1j * z.im])), (*a.shape[:-1], 2)).copy()
 
     def get_parameters(self, p: ArrayLike) -> NDArray:
@@ -128,11 +149,11 @@ class SuspensionChart(SymbolicChart):
         p = super().check_point(p)
         if not np.all(np.isfinite(p)):
             raise ChartDomainError(f"point must be finite, got {p}")
-        res = closure_residual(to_complex(p), self.L)
+        res = closure_residual(to_complex(p), self.L, self.lengths)
         if np.any(res > CLOSURE_TOLERANCE):
             raise ChartDomainError(
-                f"configuration does not close: rod-length error {np.max(res):.3g} > {CLOSURE_TOLERANCE:g} "
-                f"(n = {self.n}, L = {self.L})"
+                f"configuration does not close: relative rod-length error {np.max(res):.3g} > {CLOSURE_TOLERANCE:g} "
+                f"({self!r})"
             )
         return p
 
@@ -193,7 +214,7 @@ class SuspensionChart(SymbolicChart):
     def rod_angles(self, a: ArrayLike) -> NDArray:
         """Rod angles ``theta_1 .. theta_n`` from the seed's angle form (own rod order)."""
         a = self.check_parameters(a)
-        f = np.stack(np.broadcast_arrays(*formula.rod_angles(self._columns(a), self.L, NUMPY, self.sheet)), axis=-1)
+        f = np.stack(np.broadcast_arrays(*formula.rod_angles(self._columns(a), self.L, NUMPY, self.sheet, self.rods)), axis=-1)
         out = np.empty_like(f)
         out[..., self.order] = f
         return out
@@ -262,11 +283,14 @@ class SuspensionAtlas(Atlas):
     Chart ``s`` starts its suspension at rod ``s``; it is singular where rods
     ``s, s+1, s+2`` (mod ``n``) point the same way.  For ``n = 2`` the atlas is
     the two one-point charts of ``S^0``; for ``n = 3`` every chart is global.
+    With links of other lengths a relabeling permutes the lengths too (they are
+    the charts' runtime parameters).
 
     Parameters
     ----------
-    n, L
-        The chain.
+    lengths, L
+        The chain: an integer ``n`` (unit rods) or the link lengths, and the
+        base ``L``, its dominant side (see :class:`SuspensionChart`).
     switch_threshold
         Quality below which the active chart should be left (default 0.25,
         well below the worst best-chart quality, 0.60 for n = 4..8 and 0.80
@@ -284,17 +308,17 @@ class SuspensionAtlas(Atlas):
 
     charts: Sequence[SuspensionChart]  # narrower than Atlas.charts: sphere_point, hinges, rod_angles are there
 
-    def __init__(self, n: int, L: float, switch_threshold: float = 0.25) -> None:
-        n, L = validate_chain(n, L)
+    def __init__(self, lengths: int | ArrayLike, L: float, switch_threshold: float = 0.25) -> None:
+        ls, L = validate_sphere_chain(lengths, L)
+        n = ls.size
         if n == 2:
-            charts = [SuspensionChart(2, L, sheet=s) for s in (1, -1)]
+            charts = [SuspensionChart(ls, L, sheet=s) for s in (1, -1)]
             ids = ["sheet+", "sheet-"]
         else:
-            orders = cyclic_orders(n)
-            charts = [SuspensionChart(n, L, o) for o in orders]
+            charts = [SuspensionChart(ls, L, o) for o in cyclic_orders(n)]
             ids = [f"shift{s}" for s in range(n)]
-        super().__init__(charts, ids, switch_threshold, QUALITY_FLOOR.get(n))
-        self.n, self.L = n, L
+        super().__init__(charts, ids, switch_threshold, QUALITY_FLOOR.get(n) if charts[0].unit_rods else None)
+        self.n, self.L, self.lengths = n, L, charts[0].lengths
         # Every chart maps this box onto the whole configuration space, one-to-one off its singular set (empty for n = 2).
         half = np.full(max(n - 3, 0), np.pi / 2)
         self.parameter_box = (np.append(-half, -np.pi), np.append(half, np.pi)) if n > 2 else (np.zeros(0), np.zeros(0))
