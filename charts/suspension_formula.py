@@ -108,6 +108,15 @@ class Rods:
     def n(self) -> int:
         return len(self.l)
 
+    def fold_gap(self, m: int) -> Any:
+        """``R_{m-1} - 2 mu_m = sum_{j<m} (l_j - mu_m) + (m-3) mu_m``: a sum of non-negatives for ``m >= 3``
+        (the plain difference cancels where two links are nearly equal and the shortest); ``m - 3`` for unit rods."""
+        mu = self.mu[m]
+        out = (m - 3) * mu if isinstance(mu, (int, float)) else _times(mu, m - 3) if m > 3 else 0
+        for lj in self.l[: m - 1]:
+            out = _plus(out, 0 if isinstance(lj, (int, float)) and lj == mu else lj - mu)
+        return out
+
     def last_excess(self, m: int) -> Any:
         """``2 (l_m - mu_m) >= 0``: a Python 0 for unit rods."""
         d = self.l[m - 1] - self.mu[m]
@@ -161,8 +170,7 @@ class Base:
 
     def d_minus_l(self) -> Any:
         """``D - l_m = lo + (R_{m-1} - 2 mu_m)``: both terms ``>= 0`` for ``m >= 3`` (no cancellation)."""
-        r, m = self.rods, self.m
-        return _plus(self.lo, r.R[m - 1] - 2 * r.mu[m])
+        return _plus(self.lo, self.rods.fold_gap(self.m))
 
     def last_slack(self) -> Any:
         """``D + l_m - R_{m-1} = lo + 2 (l_m - mu_m)``, both terms ``>= 0``: 0 where the last link can fold back."""
@@ -210,9 +218,15 @@ def top_base(n: int, L: Any, rods: Rods | None = None) -> Base:
     return (Rods.unit(n) if rods is None else rods).top_base(L)
 
 
-def _last_hinge(D: Any, theta: Any, l: Any, ops: Any) -> Cx:
-    """``D - l e^{i theta}``: the base minus the last link."""
-    return Cx(D - _times(l, ops.cos(theta)), -_times(l, ops.sin(theta)))
+def _last_hinge(base: Base, theta: Any, ops: Any) -> Cx:
+    """``D - l_m e^{i theta}``: the base minus the last link.
+
+    Its real part is ``(D - l_m) + 2 l_m sin^2(theta/2)``, a sum of non-negatives with the carried
+    ``D - l_m``: ``D - l_m cos(theta)`` would carry an error ``eps D`` into a hinge that can pass
+    near 0 (a fold), where the elbow ``p_2 / |p_2|`` amplifies it by ``l / |p_2|``.
+    """
+    l, h = base.last, ops.sin(theta / 2)
+    return Cx(_plus(base.d_minus_l(), _times(2 * l, h * h)), -_times(l, ops.sin(theta)))
 
 
 def _circle_scale(D: Any, l: Any, alpha: Any, up: Any, dn: Any, ops: Any) -> Any:
@@ -300,7 +314,7 @@ def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1, rods: Rods | None
 
     for phi in a[:-1]:
         theta, inner = base.peel(phi, ops)
-        p = _last_hinge(base.D, theta, base.last, ops)
+        p = _last_hinge(base, theta, ops)
         outer.append(place(p))
         base = inner
         frame = place(p.scale(1 / base.D))
@@ -311,7 +325,7 @@ def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1, rods: Rods | None
     t = a[-1]
     alpha = base.alpha(ops)
     theta = alpha * ops.sin(t)
-    p2 = _last_hinge(D, theta, base.last, ops)
+    p2 = _last_hinge(base, theta, ops)
     nu = ops.cos(t) * _circle_scale(D, base.last, alpha, ops.one_plus_sin(t), ops.one_minus_sin(t), ops)
     c, r = _elbow(base, theta, p2.abs2(), ops)
     k = nu * r / 2
@@ -410,7 +424,7 @@ def rod_angles(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1, rods: Rods | 
     base, R, tail = top_base(n, L, rods), 0.0, []
     for phi in a:
         theta, inner = base.peel(phi, ops)
-        p = _last_hinge(base.D, theta, base.last, ops)
+        p = _last_hinge(base, theta, ops)
         tail.append(R + theta)
         R = R + ops.atan2(p.im, p.re)
         base = inner
@@ -418,3 +432,54 @@ def rod_angles(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1, rods: Rods | 
             sheet = np.sign(ops.cos(phi))
     x, y = _two_link_elbow(base, 1, ops)  # beta_1 = atan2(y, x), beta_2 = atan2(y, D - x): accurate near D = R_2
     return [R + sheet * ops.atan2(y, x), R - sheet * ops.atan2(y, base.D - x)] + tail[::-1]
+
+
+def _side_sum(w: Sequence[Any], sides: Sequence[Cx]) -> Cx:
+    """``sum_k w_k s_k``: the side that a one-hot ``w`` (runtime parameters) picks."""
+    terms = [s.scale(wk) for wk, s in zip(w, sides)]
+    out = terms[0]
+    for t in terms[1:]:
+        out = out + t
+    return out
+
+
+def _sides(hinges: Sequence[Cx], end: Any) -> list[Cx]:
+    """Side vectors ``h_k - h_{k-1}`` of a chain from 0 through ``hinges`` to the real ``end``."""
+    ends = [Cx(0.0, 0.0)] + list(hinges) + [Cx(end, 0.0)]
+    return [q - o for o, q in zip(ends[:-1], ends[1:])]
+
+
+def pinned_hinges(q: Sequence[Cx], D: Any, L: Any, w: Sequence[Any]) -> list[Cx]:
+    """Hinges pinned at ``0`` and ``L`` from the chart-frame hinges ``q`` of a chain on a dominant link.
+
+    The chart is the suspension chart of the polygon turned so that the dominant
+    link ``l_j = D`` is the base: ``q`` are the hinges of the other ``n`` sides in
+    chart order, from 0 to ``D``, one of which (``w_k = 1``, one-hot) is the pinned
+    base ``L``, whose vector there is ``F = sum_k w_k f_k``.  Turning back by
+    ``conj(omega) = -conj(F) / L`` (``omega = -F / L`` is unimodular because
+    ``|F| = L``) puts that side at ``-L``, and putting the link ``l_j`` (the
+    chart's closing side ``-D``) in its place gives the chain from 0 to ``L``::
+
+        z_k = -conj(F) / L (q_k - W_k (D + F)),   W_k = w_1 + ... + w_k
+
+    in chart order with the base's slot held by link ``j``.  Smooth: ``|F| = L > 0``.
+    """
+    F = _side_sum(w, _sides(q, D))
+    turn = Cx(-F.re / L, F.im / L)
+    out, W = [], 0
+    for qk, wk in zip(q, w):
+        W = _plus(W, wk)
+        out.append(turn * (qk - Cx(D + F.re, F.im).scale(W)))
+    return out
+
+
+def chart_frame_hinges(z: Sequence[Cx], D: Any, L: Any, w: Sequence[Any]) -> list[Cx]:
+    """Inverse of :func:`pinned_hinges`: with the link's side ``e = sum_k w_k s_k`` of the pinned chain
+    (``|e| = D``), ``omega = -conj(e) / D`` and ``q_k = omega (z_k - W_k (e + L))``."""
+    e = _side_sum(w, _sides(z, L))
+    turn = Cx(-e.re / D, e.im / D)
+    out, W = [], 0
+    for zk, wk in zip(z, w):
+        W = _plus(W, wk)
+        out.append(turn * (zk - Cx(e.re + L, e.im).scale(W)))
+    return out
