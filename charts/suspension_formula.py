@@ -306,8 +306,19 @@ def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1, rods: Rods | None
     rods
         The link lengths in chart order (:class:`Rods`); default unit rods.
     """
+    return chain_vectors(a, L, ops, sheet, rods)[0]
+
+
+def chain_vectors(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1,
+                  rods: Rods | None = None) -> tuple[list[Cx], list[Cx]]:
+    """The hinges ``p_1 .. p_{n-1}`` of :func:`hinges` and the link vectors ``e_1 .. e_n``.
+
+    Each link vector is formed as such (``l_m e^{i theta}`` in its level's frame, ``p_1`` and
+    ``p_2 - p_1 = p_2 (1 - c - i k)`` at the circle level), accurate relative to its own length: a
+    difference of hinges would carry their rounding, ``eps`` times the chain's size, into a short link.
+    """
     n = len(a) + 2
-    base, frame, outer = top_base(n, L, rods), None, []  # frame: rotation of the current sub-frame (None = identity)
+    base, frame, outer, links = top_base(n, L, rods), None, [], []  # frame: rotation of the current sub-frame
 
     def place(z: Cx) -> Cx:
         return z if frame is None else frame * z
@@ -316,12 +327,13 @@ def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1, rods: Rods | None
         theta, inner = base.peel(phi, ops)
         p = _last_hinge(base, theta, ops)
         outer.append(place(p))
+        links.append(place(Cx(_times(base.last, ops.cos(theta)), _times(base.last, ops.sin(theta)))))
         base = inner
         frame = place(p.scale(1 / base.D))
     D = base.D
     if n == 2:
         x, y = _two_link_elbow(base, sheet, ops)
-        return [Cx(x, sheet * y)]
+        return [Cx(x, sheet * y)], [Cx(x, sheet * y), Cx(D - x, -sheet * y)]
     t = a[-1]
     alpha = base.alpha(ops)
     theta = alpha * ops.sin(t)
@@ -330,7 +342,9 @@ def hinges(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1, rods: Rods | None
     c, r = _elbow(base, theta, p2.abs2(), ops)
     k = nu * r / 2
     p1 = Cx(c * p2.re - k * p2.im, c * p2.im + k * p2.re)
-    return [place(p1), place(p2)] + outer[::-1]
+    e2 = Cx((1 - c) * p2.re + k * p2.im, (1 - c) * p2.im - k * p2.re)
+    e3 = Cx(_times(base.last, ops.cos(theta)), _times(base.last, ops.sin(theta)))
+    return [place(p1), place(p2)] + outer[::-1], [place(p1), place(e2), place(e3)] + links[::-1]
 
 
 def fold_qualities(a: Sequence[Any], L: Any, ops: Any, rods: Rods | None = None) -> list[Any]:
@@ -449,22 +463,26 @@ def _sides(hinges: Sequence[Cx], end: Any) -> list[Cx]:
     return [q - o for o, q in zip(ends[:-1], ends[1:])]
 
 
-def pinned_hinges(q: Sequence[Cx], D: Any, L: Any, w: Sequence[Any]) -> list[Cx]:
+def pinned_hinges(q: Sequence[Cx], D: Any, L: Any, w: Sequence[Any], links: Sequence[Cx]) -> list[Cx]:
     """Hinges pinned at ``0`` and ``L`` from the chart-frame hinges ``q`` of a chain on a dominant link.
 
     The chart is the suspension chart of the polygon turned so that the dominant
     link ``l_j = D`` is the base: ``q`` are the hinges of the other ``n`` sides in
-    chart order, from 0 to ``D``, one of which (``w_k = 1``, one-hot) is the pinned
-    base ``L``, whose vector there is ``F = sum_k w_k f_k``.  Turning back by
-    ``conj(omega) = -conj(F) / L`` (``omega = -F / L`` is unimodular because
-    ``|F| = L``) puts that side at ``-L``, and putting the link ``l_j`` (the
-    chart's closing side ``-D``) in its place gives the chain from 0 to ``L``::
+    chart order, from 0 to ``D``, and ``links`` their vectors (:func:`chain_vectors`);
+    one of them (``w_k = 1``, one-hot) is the pinned base ``L``, whose vector there
+    is ``F = sum_k w_k links_k``.  Turning back by ``conj(omega) = -conj(F) / L``
+    (``omega = -F / L`` is unimodular because ``|F| = L``) puts that side at ``-L``,
+    and putting the link ``l_j`` (the chart's closing side ``-D``) in its place gives
+    the chain from 0 to ``L``::
 
         z_k = -conj(F) / L (q_k - W_k (D + F)),   W_k = w_1 + ... + w_k
 
     in chart order with the base's slot held by link ``j``.  Smooth: ``|F| = L > 0``.
+    ``F`` is taken from the link vectors, not from ``q_{k0} - q_{k0-1}``: the turn's
+    direction error is that of ``F`` relative to ``L``, and a difference of hinges
+    would make it ``eps R / L`` (``R`` the chain's size).
     """
-    F = _side_sum(w, _sides(q, D))
+    F = _side_sum(w, links)
     turn = Cx(-F.re / L, F.im / L)
     out, W = [], 0
     for qk, wk in zip(q, w):

@@ -14,15 +14,15 @@ so the kinetic energy (dynamics seed, section 1) is::
 with ``A`` tridiagonal: ``A_jj = M_j + (lambda_j l_j + lambda_{j+1} l_{j+1}) / 3`` and
 ``A_{j,j+1} = lambda_{j+1} l_{j+1} / 6``; ``v`` the interleaved real hinge velocity.
 
-The configuration space (:meth:`Chain.topology`) is a sphere ``S^(n-2)`` with
-the base ``L`` its dominant side for ``R - 2 mu < L < R`` (``R`` the sum of the
-lengths, ``mu`` the shortest; ``n - 2 < L < n`` for unit rods): there the
-suspension charts of ``charts/`` give an atlas (:meth:`Chain.atlas`).  Elsewhere
-it may be a sphere whose dominant side is a link, a pair of tori, a surface of
-higher genus, singular, or empty (refused); its free motion is integrated in
-hinge coordinates (``free_motion(..., method="hinges")``, which also serves
-every chain with an atlas), and :meth:`Chain.diagonal_space` parameterises it by
-the diagonals ``|p_k|``.
+The configuration space (:meth:`Chain.topology`) is a sphere ``S^(n-2)`` where
+a side of the polygon ``(l_1, ..., l_n, L)`` dominates: the base ``L`` for
+``R - 2 mu < L < R`` (``R`` the sum of the lengths, ``mu`` the shortest;
+``n - 2 < L < n`` for unit rods), or a link.  There the suspension charts of
+``charts/``, built on the dominant side, give an atlas (:meth:`Chain.atlas`).
+Elsewhere it may be a pair of tori, a surface of higher genus, singular, or
+empty (refused); its free motion is integrated in hinge coordinates
+(``free_motion(..., method="hinges")``, which also serves every chain with an
+atlas), and :meth:`Chain.diagonal_space` parameterises it by the diagonals ``|p_k|``.
 """
 
 from __future__ import annotations
@@ -160,8 +160,9 @@ class Chain:
         Generic means no signed sum ``sum_k eps_k l_k`` equals ``L``; otherwise
         the collinear configurations ``e_k = eps_k l_k`` are singular points
         (the constraint Jacobian loses rank there), and the message names them.
-        A chain with an atlas (:attr:`has_atlas`: a sphere with ``L`` dominant) is generic without
-        enumerating subsets: every signed sum is ``R`` (``> L``) or at most ``R - 2 mu`` (``< L``).
+        A chain with an atlas (:attr:`has_atlas`: a sphere) is generic: unit rods with ``n - 2 < L < n``
+        without enumerating subsets (every signed sum is ``n`` or at most ``n - 2``), other lengths by
+        :meth:`topology`, which reports a sphere only where no signed sum equals ``L``.
         """
         if self.has_atlas:
             return
@@ -222,24 +223,19 @@ class Chain:
             return (f"deciding whether the configuration space is a sphere enumerates 2^n signed sums: suspension "
                     f"charts of links of other lengths need n <= {MAX_RODS}, got n = {self.n}" + hint)
         t = self.topology()
-        if t.kind == "sphere" and t.dominant_side == self.n:
+        if t.kind == "sphere":
             return None
         lo, hi = sphere_range(self.lengths)
-        if t.kind == "sphere":
-            j = t.dominant_side
-            assert j is not None  # a sphere has its dominant side
-            return (f"the configuration space of {self!r} is the sphere S^{self.n - 2}, but its dominant side is "
-                    f"the link l_{j + 1} = {float(self.lengths[j])!r}, not the base L; suspension charts "
-                    f"(atlas, metric, free_motion(..., method='charts')) are built on the base, so they need "
-                    f"{lo!r} < L < {hi!r}" + hint)
         return (f"suspension charts (atlas, metric, free_motion(..., method='charts')) exist only where the "
-                f"configuration space is a sphere with L its dominant side, {lo!r} < L < {hi!r} (away from both "
-                f"ends by more than topology()'s tolerance); here it is {t.summary()}" + hint)
+                f"configuration space is a sphere, a side of the polygon (l_1, ..., l_n, L) dominant (the base L "
+                f"for {lo!r} < L < {hi!r}; away from the ends by more than topology()'s tolerance); here it is "
+                f"{t.summary()}" + hint)
 
     @property
     def has_atlas(self) -> bool:
-        """Whether :meth:`atlas` exists: where the configuration space is the sphere ``S^(n-2)`` with ``L`` its
-        dominant side, ``R - 2 mu < L < R`` (``R`` the sum of the lengths, ``mu`` the shortest).
+        """Whether :meth:`atlas` exists: where the configuration space is the sphere ``S^(n-2)``, some side of
+        the polygon ``(l_1, ..., l_n, L)`` dominant (the charts' base: ``L`` for ``R - 2 mu < L < R``, ``R`` the
+        sum of the lengths, ``mu`` the shortest; else a link).
 
         For unit rods ``n - 2 < L < n`` exactly (as :func:`charts.chain_geometry.validate_chain`); for lengths
         given as a sequence as :meth:`topology` decides, which counts ``L`` within ``RTOL * P`` of an end as
