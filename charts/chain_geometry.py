@@ -69,7 +69,7 @@ def dominant_side(lengths: ArrayLike, L: float) -> int | None:
     return next((j for j in [len(s) - 1, *range(len(s) - 1)] if dominates(j)), None)
 
 
-def validate_sphere_chain(lengths: object, L: object) -> tuple[NDArray, float, int]:
+def validate_sphere_chain(lengths: int | ArrayLike, L: object) -> tuple[NDArray, float, int]:
     """Check that links ``lengths`` pinned ``L`` apart have the sphere ``S^(n-2)`` as configuration space.
 
     ``lengths`` is an integer ``n`` (unit rods: :func:`validate_chain`, ``n-2 < L < n``, the base
