@@ -10,6 +10,7 @@ the interleaved real vector ``(x_1, y_1, ..., x_{n-1}, y_{n-1})``.
 from __future__ import annotations
 
 import numbers
+from fractions import Fraction
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -37,6 +38,81 @@ def validate_chain(n: object, L: object) -> tuple[int, float]:
     if not (n - 2 < Lf < n):
         raise ValueError(message)
     return int(n), Lf
+
+
+def sphere_range(lengths: ArrayLike) -> tuple[float, float]:
+    """``(R - 2 mu, R)``: the open range of ``L`` where the base is the dominant side of the polygon
+    ``(l_1, ..., l_n, L)`` (``R = l_1 + ... + l_n``, ``mu = min l_k``), and the space the sphere ``S^(n-2)``.
+
+    ``L < P/2 < L + l_k`` for every ``k`` (``P = R + L``) is ``R - 2 mu < L < R``; for unit rods ``n - 2 < L < n``.
+    The ends are rounded to float64; :func:`validate_sphere_chain` decides membership exactly.
+    """
+    ls = [Fraction(float(x)) for x in np.asarray(lengths, dtype=float).ravel()]
+    R = sum(ls)
+    return float(R - 2 * min(ls)), float(R)
+
+
+def dominant_side(lengths: ArrayLike, L: float) -> int | None:
+    """The dominant side of the polygon ``(l_1, ..., l_n, L)``, decided exactly (in rationals), or ``None``.
+
+    Side ``s_j`` dominates if ``s_j < P/2 < s_j + s_i`` for every other side ``s_i`` (``P`` the perimeter):
+    the configuration space is then the sphere ``S^(n-2)``.  Index ``k - 1`` for the link ``l_k``, ``n`` for
+    the base.  For ``n >= 3`` at most one side dominates; for ``n = 2`` (a triangle) every side does when
+    any does, and the base is returned.
+    """
+    s = [Fraction(float(x)) for x in np.asarray(lengths, dtype=float).ravel()] + [Fraction(float(L))]
+    P = sum(s)
+
+    def dominates(j: int) -> bool:
+        return 2 * s[j] < P < 2 * (s[j] + min(s[:j] + s[j + 1:]))
+
+    return next((j for j in [len(s) - 1, *range(len(s) - 1)] if dominates(j)), None)
+
+
+def validate_sphere_chain(lengths: int | ArrayLike, L: object) -> tuple[NDArray, float, int]:
+    """Check that links ``lengths`` pinned ``L`` apart have the sphere ``S^(n-2)`` as configuration space.
+
+    ``lengths`` is an integer ``n`` (unit rods: :func:`validate_chain`, ``n-2 < L < n``, the base
+    dominant) or a sequence of at least 2 finite lengths ``> 0``; some side of the polygon must dominate
+    (:func:`dominant_side`, decided exactly: a float64 sum of the lengths could misjudge an ``L`` within
+    rounding of an end).  The base dominates for ``L`` in the open :func:`sphere_range`.
+    Returns ``(lengths as a float array, float(L), the dominant side)``; raises ``ValueError``
+    naming the bad value and the valid range.
+    """
+    if np.ndim(lengths) == 0:
+        n, Lf = validate_chain(lengths, L)
+        return np.ones(n), Lf, n
+    try:
+        ls = np.asarray(lengths, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"lengths must be an integer n >= 2 or a sequence of positive finite numbers, "
+                         f"got {lengths!r}") from None
+    if ls.ndim != 1 or ls.size < 2 or not np.all(np.isfinite(ls)) or not np.all(ls > 0):
+        raise ValueError(f"lengths must be a sequence of at least 2 finite numbers > 0, got {lengths!r}")
+    lo, hi = sphere_range(ls)
+    message = (f"L must be a finite real number with {lo!r} < L < {hi!r} (R - 2 min l < L < R, R = sum of the "
+               f"lengths: the range where L is the dominant side of the polygon and the configuration space of "
+               f"links {tuple(float(x) for x in ls)} the sphere S^{ls.size - 2}), or such that a link is the "
+               f"dominant side, got L = {L!r}")
+    try:
+        Lf = check_real("L", L)
+    except ValueError:
+        raise ValueError(message) from None
+    base = dominant_side(ls, Lf) if Lf > 0 else None
+    if base is None:
+        raise ValueError(message)
+    return ls, Lf, base
+
+
+def side_orders(n: int, base: int) -> list[NDArray]:
+    """The ``n`` cyclic orders of the sides other than ``base`` that follow it around the polygon.
+
+    Sides are ``0 .. n-1`` (the links) and ``n`` (the pinned base ``L``).  For ``base = n`` these are the
+    cyclic rod orders ``(s, s+1, ..., s-1)``; for a dominant link ``j`` they are the cyclic shifts of
+    ``(j+1, ..., n-1, n, 0, ..., j-1)``.
+    """
+    after = np.array([(base + 1 + k) % (n + 1) for k in range(n)])
+    return [np.roll(after, -s) for s in range(n)]
 
 
 def to_real(hinges: ArrayLike) -> NDArray:
@@ -77,11 +153,14 @@ def closure_residual(hinges: ArrayLike, L: float, lengths: ArrayLike = 1.0) -> N
     return np.max(np.abs(np.abs(rod_vectors(hinges, L)) - ls) / ls, axis=-1)
 
 
-def validate_permutation(order: ArrayLike, n: int) -> NDArray:
-    """Check that ``order`` is a permutation of ``0 .. n-1``; return it as an int array."""
+def validate_side_order(order: ArrayLike, n: int, base: int) -> NDArray:
+    """Check that ``order`` is a permutation of the sides other than ``base`` (``0 .. n-1`` the links, ``n``
+    the pinned base ``L``; for ``base = n`` a permutation of ``0 .. n-1``); return it as an int array."""
     o = np.asarray(order)
-    if o.shape != (n,) or not np.issubdtype(o.dtype, np.integer) or sorted(o.tolist()) != list(range(n)):
-        raise ValueError(f"rod order must be a permutation of 0..{n - 1}, got {order!r}")
+    sides = [s for s in range(n + 1) if s != base]
+    if o.shape != (n,) or not np.issubdtype(o.dtype, np.integer) or sorted(o.tolist()) != sides:
+        what = f"0..{n - 1}" if base == n else f"the sides {sides} (links 0..{n - 1}, the base L {n}; not the base {base})"
+        raise ValueError(f"rod order must be a permutation of {what}, got {order!r}")
     return o.astype(int)
 
 

@@ -30,8 +30,9 @@ from .chain_geometry import (
     to_complex,
     to_real,
     unlabel_hinges,
-    validate_chain,
-    validate_permutation,
+    side_orders,
+    validate_side_order,
+    validate_sphere_chain,
 )
 from .suspension_symbolic import SuspensionFamily
 
@@ -45,16 +46,28 @@ QUALITY_FLOOR = {2: 1.0, 3: 0.8, 4: 0.6, 5: 0.6, 6: 0.6, 7: 0.6, 8: 0.6}
 
 
 class SuspensionChart(SymbolicChart):
-    """Iterated-suspension chart of ``n`` unit rods pinned at ``0`` and ``L``.
+    """Iterated-suspension chart of a chain of ``n`` links pinned at ``0`` and ``L`` whose space is a sphere.
 
     Parameters
     ----------
-    n, L
-        Number of rods (``>= 2``) and base length (``n-2 < L < n``).
+    lengths
+        An integer ``n >= 2`` (``n`` unit rods) or the link lengths ``l_1 .. l_n``
+        (``n >= 2``, each ``> 0``), in the chain's own order.
+    L
+        Base length.  Some side of the polygon ``(l_1, ..., l_n, L)`` must be
+        dominant (``s_j < P/2 < s_j + s_i`` for all others): the configuration
+        space is then the sphere ``S^(n-2)``
+        (:func:`charts.chain_geometry.validate_sphere_chain`).  The dominant side
+        is the chart's base: ``L`` itself for ``R - 2 mu < L < R`` (``R`` the sum
+        of the lengths, ``mu`` the shortest; ``n-2 < L < n`` for unit rods), or a
+        link ``l_j``, the polygon then turned so that ``l_j`` lies on the real
+        axis and turned back to pin ``L`` (:func:`charts.suspension_formula.pinned_hinges`).
     order
-        Rod order: the chart's k-th rod is rod ``order[k]`` (default identity).
-        The chart is singular where rods ``order[0], order[1], order[2]`` point
-        the same way.
+        Side order: the chart's k-th link is side ``order[k]`` (``0 .. n-1`` the
+        links, ``n`` the pinned base ``L``), a permutation of the sides other than
+        the chart's base; default the sides that follow the base around the
+        polygon (the identity for base ``L``).  The chart is singular where sides
+        ``order[0], order[1], order[2]`` point the same way.
     sheet
         For ``n = 2`` only: which of the two points of ``S^0`` (``+1``: elbow up).
 
@@ -65,29 +78,51 @@ class SuspensionChart(SymbolicChart):
     ``quality(a) = min(cos(phi_n), ..., cos(phi_4), q_A, q_B)``: 0 at the poles (three rods of
     the order stretched in a line), at the fold of the first two rods (``q_A``) and at the
     folded triple (``q_B``), see :func:`charts.suspension_formula.fold_qualities`.
+    Unit rods compile :class:`SuspensionFamily` ``(n)`` (``theta = (L,)``); other
+    lengths ``SuspensionFamily(n, lengths=True)`` (or ``link_base=True``), whose
+    runtime parameters carry the lengths in chart order: one compiled family for
+    every length vector.
     """
 
-    def __init__(self, n: int, L: float, order: ArrayLike | None = None, sheet: int = 1) -> None:
-        self.n, self.L = validate_chain(n, L)
-        self.order = validate_permutation(np.arange(self.n) if order is None else order, self.n)
+    def __init__(self, lengths: int | ArrayLike, L: float, order: ArrayLike | None = None, sheet: int = 1) -> None:
+        ls, self.L, self.base = validate_sphere_chain(lengths, L)
+        ls.flags.writeable = False
+        self.lengths, self.n = ls, ls.size
+        self.unit_rods = bool(np.all(ls == 1.0))
+        n, base = self.n, self.base
+        self.order = validate_side_order(side_orders(n, base)[0] if order is None else order, n, base)
+        #: The chain's own links in chart order: ``order`` with the base's slot held by the dominant link.
+        self.links = np.where(self.order == n, base, self.order)
         if sheet not in (1, -1):
             raise ValueError(f"sheet must be +1 or -1, got {sheet!r}")
         self.sheet = sheet
-        self.dim = self.n - 2
-        self.ambient_dim = 2 * (self.n - 1)
+        self.dim = n - 2
+        self.ambient_dim = 2 * (n - 1)
         #: ``M`` of ``p = M z + m``: chart-order hinges ``z`` to own-order hinges ``p`` (interleaved real).
-        self.linear_map = np.kron(relabel_matrix(self.order), np.eye(2))
-        if self.n >= 3:
-            self.family = SuspensionFamily(self.n)
-            self.family_parameters = np.array([self.L])
+        self.linear_map = np.kron(relabel_matrix(self.links), np.eye(2))
+        sides_lengths = np.append(ls, self.L)[self.order]  # the chart's links: the sides other than its base
+        D = float(np.append(ls, self.L)[base])
+        if self.unit_rods:
+            self.rods = formula.Rods.unit(n)
+            theta = [self.L]
+        else:
+            slacks = formula.top_slacks(sides_lengths, D)
+            self.rods = formula.Rods([float(x) for x in sides_lengths], NUMPY, slacks)
+            theta = [D, *sides_lengths, *slacks]
+            if base != n:
+                theta += [self.L, *(self.order == n).astype(float)]
+        if n >= 3:
+            self.family = SuspensionFamily(n, lengths=not self.unit_rods, link_base=base != n)
+            self.family_parameters = np.array(theta)
 
     def offset(self, fp_type: type = float) -> NDArray:
         """``m = p(z = 0)``: the relabeling's constant part, a multiple of ``L`` (exact in ``fp_type``)."""
-        unit = to_real(relabel_hinges(np.zeros(self.n - 1), self.order, 1.0)).real
+        unit = to_real(relabel_hinges(np.zeros(self.n - 1), self.links, 1.0)).real
         return as_fp(unit, fp_type) * as_fp(self.L, fp_type)
 
     def __repr__(self) -> str:
-        return f"SuspensionChart(n={self.n}, L={self.L!r}, order={self.order.tolist()})"
+        chain = f"n={self.n}" if self.unit_rods else f"lengths={tuple(float(x) for x in self.lengths)}"
+        return f"SuspensionChart({chain}, L={self.L!r}, order={self.order.tolist()})"
 
     # -- parameters -----------------------------------------------------------
     def check_parameters(self, a: ArrayLike) -> NDArray:
@@ -117,7 +152,7 @@ class SuspensionChart(SymbolicChart):
         if self.n > 2:
             return super().get_point(a)
         a = self.check_parameters(a)  # S^0: the elbow of the given sheet
-        z = formula.hinges([], self.L, NUMPY, self.sheet)[0]
+        z = formula.hinges([], self.L, NUMPY, self.sheet, self.rods)[0]
         return np.broadcast_to(to_real(np.array([z.re + 1j * z.im])), (*a.shape[:-1], 2)).copy()
 
     def get_parameters(self, p: ArrayLike) -> NDArray:
@@ -128,11 +163,11 @@ class SuspensionChart(SymbolicChart):
         p = super().check_point(p)
         if not np.all(np.isfinite(p)):
             raise ChartDomainError(f"point must be finite, got {p}")
-        res = closure_residual(to_complex(p), self.L)
+        res = closure_residual(to_complex(p), self.L, self.lengths)
         if np.any(res > CLOSURE_TOLERANCE):
             raise ChartDomainError(
-                f"configuration does not close: rod-length error {np.max(res):.3g} > {CLOSURE_TOLERANCE:g} "
-                f"(n = {self.n}, L = {self.L})"
+                f"configuration does not close: relative rod-length error {np.max(res):.3g} > {CLOSURE_TOLERANCE:g} "
+                f"({self!r})"
             )
         return p
 
@@ -140,7 +175,7 @@ class SuspensionChart(SymbolicChart):
         """The closed-form inverse (:func:`charts.suspension_formula.parameters`, compiled), before the polish."""
         if self.n > 2:
             return super().approximate_parameters(p)
-        z = unlabel_hinges(to_complex(self.check_point(p)), self.order, self.L)
+        z = unlabel_hinges(to_complex(self.check_point(p)), self.links, self.L)
         if np.any(np.sign(z.imag) == -self.sheet):
             raise ChartDomainError(f"point is on the other sheet than this S^0 chart (sheet {self.sheet})")
         return np.zeros((*z.shape[:-1], 0))
@@ -191,11 +226,21 @@ class SuspensionChart(SymbolicChart):
         return out
 
     def rod_angles(self, a: ArrayLike) -> NDArray:
-        """Rod angles ``theta_1 .. theta_n`` from the seed's angle form (own rod order)."""
+        """Rod angles ``theta_1 .. theta_n`` from the seed's angle form (own rod order).
+
+        With a dominant link ``l_j`` as base the form gives the angles ``f_k`` of the chart's sides in the
+        turned polygon; turning back by ``pi - f_{k0}`` (``k0`` the slot of ``L``) puts ``L`` on the real axis,
+        and ``l_j``, the chart's closing side ``-l_j``, gets ``-f_{k0}``.
+        """
         a = self.check_parameters(a)
-        f = np.stack(np.broadcast_arrays(*formula.rod_angles(self._columns(a), self.L, NUMPY, self.sheet)), axis=-1)
+        D = self.L if self.base == self.n else float(self.lengths[self.base])
+        f = np.stack(np.broadcast_arrays(*formula.rod_angles(self._columns(a), D, NUMPY, self.sheet, self.rods)), axis=-1)
+        if self.base != self.n:
+            k0 = int(np.flatnonzero(self.order == self.n)[0])
+            turned = f[..., k0 : k0 + 1]
+            f = np.where(self.order == self.n, -turned, f + np.pi - turned)
         out = np.empty_like(f)
-        out[..., self.order] = f
+        out[..., self.links] = f
         return out
 
 
@@ -252,21 +297,28 @@ class RoundSphereProposal:
 
 
 def cyclic_orders(n: int) -> list[NDArray]:
-    """The ``n`` cyclic shifts ``(s, s+1, ..., s-1)`` of the rod order."""
-    return [np.roll(np.arange(n), -s) for s in range(n)]
+    """The ``n`` cyclic shifts ``(s, s+1, ..., s-1)`` of the rod order (:func:`~charts.chain_geometry.side_orders`
+    with the base ``L``)."""
+    return side_orders(n, n)
 
 
 class SuspensionAtlas(Atlas):
     """Atlas of the ``n`` cyclic relabelings of the suspension chart.
 
-    Chart ``s`` starts its suspension at rod ``s``; it is singular where rods
-    ``s, s+1, s+2`` (mod ``n``) point the same way.  For ``n = 2`` the atlas is
-    the two one-point charts of ``S^0``; for ``n = 3`` every chart is global.
+    The charts' base is the dominant side of the polygon.  With the base ``L``,
+    chart ``s`` starts its suspension at rod ``s``; it is singular where rods
+    ``s, s+1, s+2`` (mod ``n``) point the same way.  With a dominant link ``l_j``,
+    chart ``s`` takes the sides after ``l_j`` around the polygon (``L`` among
+    them) from the ``s``-th on (:func:`~charts.chain_geometry.side_orders`).
+    For ``n = 2`` the atlas is the two one-point charts of ``S^0``; for ``n = 3``
+    every chart is global.  With links of other lengths a relabeling permutes
+    the lengths too (they are the charts' runtime parameters).
 
     Parameters
     ----------
-    n, L
-        The chain.
+    lengths, L
+        The chain: an integer ``n`` (unit rods) or the link lengths, and the
+        base ``L``; some side must be dominant (see :class:`SuspensionChart`).
     switch_threshold
         Quality below which the active chart should be left (default 0.25,
         well below the worst best-chart quality, 0.60 for n = 4..8 and 0.80
@@ -276,7 +328,10 @@ class SuspensionAtlas(Atlas):
     ----------
     quality_floor
         The measured worst best-chart quality, rounded down
-        (:data:`QUALITY_FLOOR`; ``None`` where not measured).
+        (:data:`QUALITY_FLOOR`, unit rods; ``None`` for other lengths, where it
+        depends on the lengths: ``docs/atlas_quality.md``).
+    base
+        The dominant side (``n``: ``L``; ``j``: the link ``l_{j+1}``).
     parameter_box
         ``(lower, upper)`` of the chart parameters: latitudes in ``[-pi/2, pi/2]``,
         ``t`` over one period ``[-pi, pi]``.
@@ -284,17 +339,17 @@ class SuspensionAtlas(Atlas):
 
     charts: Sequence[SuspensionChart]  # narrower than Atlas.charts: sphere_point, hinges, rod_angles are there
 
-    def __init__(self, n: int, L: float, switch_threshold: float = 0.25) -> None:
-        n, L = validate_chain(n, L)
+    def __init__(self, lengths: int | ArrayLike, L: float, switch_threshold: float = 0.25) -> None:
+        ls, L, base = validate_sphere_chain(lengths, L)
+        n = ls.size
         if n == 2:
-            charts = [SuspensionChart(2, L, sheet=s) for s in (1, -1)]
+            charts = [SuspensionChart(ls, L, sheet=s) for s in (1, -1)]
             ids = ["sheet+", "sheet-"]
         else:
-            orders = cyclic_orders(n)
-            charts = [SuspensionChart(n, L, o) for o in orders]
+            charts = [SuspensionChart(ls, L, o) for o in side_orders(n, base)]
             ids = [f"shift{s}" for s in range(n)]
-        super().__init__(charts, ids, switch_threshold, QUALITY_FLOOR.get(n))
-        self.n, self.L = n, L
+        super().__init__(charts, ids, switch_threshold, QUALITY_FLOOR.get(n) if charts[0].unit_rods else None)
+        self.n, self.L, self.lengths, self.base = n, L, charts[0].lengths, base
         # Every chart maps this box onto the whole configuration space, one-to-one off its singular set (empty for n = 2).
         half = np.full(max(n - 3, 0), np.pi / 2)
         self.parameter_box = (np.append(-half, -np.pi), np.append(half, np.pi)) if n > 2 else (np.zeros(0), np.zeros(0))

@@ -1,12 +1,19 @@
 """The suspension chart as heyoka expressions: the chart family of the geodesic engine.
 
 The expressions are symbolic in the chart parameters (variables ``a0 .. a{k-1}``,
-``k = n - 2``, in the order ``(phi_n, ..., phi_4, t)``) and in ``L``
-(runtime parameter ``par[0]``).  They give the hinges ``z`` of the chain in the
-chart's own rod order as the interleaved real vector
-``(x_1, y_1, ..., x_{n-1}, y_{n-1})``.  A rod relabeling is a constant linear
-map applied afterwards, so one compiled function per ``(n, fp_type)`` serves
-every chart and every ``L``.
+``k = n - 2``, in the order ``(phi_n, ..., phi_4, t)``) and in the chain
+(runtime parameters: ``par[0] = L`` for unit rods; for links of any lengths
+``par = (L, l_1, ..., l_n, hi, lo)`` in the chart's own link order, with the
+whole chain's slacks ``hi = R_n - L``, ``lo = L - (R_n - 2 mu_n)`` exact to one
+rounding, :func:`charts.suspension_formula.top_slacks`; with a dominant link
+``l_j`` as the base, ``par = (l_j, c_1, ..., c_n, hi, lo, L, w_1, ..., w_n)``: the
+other sides ``c`` in chart order, the pinned base ``L`` among them where the
+one-hot ``w`` says, :func:`charts.suspension_formula.pinned_hinges`).  They give
+the hinges ``z`` of the chain in the chart's own rod order as the interleaved
+real vector ``(x_1, y_1, ..., x_{n-1}, y_{n-1})``.  A rod relabeling is a constant linear
+map applied afterwards, so one compiled function per ``(n, fp_type)`` (and
+per kind: unit rods, or any lengths) serves every chart, every ``L`` and
+every length vector.
 
 Everything compiled from the family (integrator, Jacobian, quality, ...) is
 built by :func:`manifold.compiled.compiled`, once per ``SuspensionFamily.key``.
@@ -14,58 +21,96 @@ built by :func:`manifold.compiled.compiled`, once per ``SuspensionFamily.key``.
 
 from __future__ import annotations
 
+from typing import Any
+
 import heyoka as hy
 
-from manifold.jets import Jet, JetOps
+from manifold.backends import Cx, HeyokaOps
 from manifold.family import ChartFamily
+from manifold.jets import Jet, JetOps
+from manifold.precision import is_double
 
 from . import suspension_formula as formula
-from manifold.backends import Cx, HeyokaOps
-
-
-def hinge_expressions(a: list, fp_type: type = float, L=hy.par[0]) -> list:
-    """Interleaved real hinge coordinates of the suspension chart in variables ``a``: ``2(n-1)`` expressions."""
-    z = formula.hinges(a, L, HeyokaOps(fp_type))
-    return [c for h in z for c in (h.re, h.im)]
 
 
 class SuspensionFamily(ChartFamily):
-    """The suspension charts of ``n`` rods as a family: ``theta = (L,)``, ``z`` = hinges in chart rod order."""
+    """The suspension charts of ``n`` links as a family; ``z`` = hinges in chart rod order.
+
+    Parameters
+    ----------
+    n
+        Number of links, ``>= 3``.
+    lengths
+        ``False`` (default): unit rods, ``theta = (L,)``.  ``True``: links of any
+        lengths, ``theta = (L, l_1, ..., l_n, hi, lo)`` (chart order).
+    link_base
+        ``True``: a dominant link is the chart's base (implies ``lengths``),
+        ``theta = (l_j, c_1, ..., c_n, hi, lo, L, w_1, ..., w_n)``.
+    """
 
     block = 2
-    n_params = 1
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, n: int, lengths: bool = False, link_base: bool = False) -> None:
         if n < 3:
             raise ValueError(f"the suspension family has parameters only for n >= 3 rods, got n = {n}")
         self.n, self.dim, self.point_dim = n, n - 2, 2 * (n - 1)
+        self.link_base = bool(link_base)
+        self.lengths = bool(lengths) or self.link_base
+        self.n_params = 2 * n + 4 if self.link_base else n + 3 if self.lengths else 1
         self.periodic = (self.dim - 1,)  # the circle angle t
 
     @property
     def key(self) -> tuple:
-        return ("suspension", self.n)
+        kind = ("link-base",) if self.link_base else ("lengths",) if self.lengths else ()
+        return ("suspension", self.n, *kind)
 
     def __repr__(self) -> str:
-        return f"SuspensionFamily(n={self.n})"
+        kind = ", link_base=True" if self.link_base else ", lengths=True" if self.lengths else ""
+        return f"SuspensionFamily(n={self.n}{kind})"
+
+    def _hinges(self, a: list, ops: Any, fp_type: Any) -> list:
+        """The chart's hinges: the suspension formula's, pinned at 0 and ``L`` where a dominant link is the base."""
+        q, links = formula.chain_vectors(a, hy.par[0], ops, rods=self.rods(fp_type))
+        if not self.link_base:
+            return q
+        n = self.n
+        return formula.pinned_hinges(q, hy.par[0], hy.par[n + 3], [hy.par[n + 4 + k] for k in range(n)], links)
+
+    def rods(self, fp_type: Any) -> formula.Rods:
+        """The link lengths as runtime parameters (Python 1s for unit rods).
+
+        In float64 the whole chain's slacks are the exact ones in ``par``; a
+        wider ``fp_type`` forms them from ``L`` and the lengths, which in it is
+        exact (or far closer than a float64 rounding).
+        """
+        if not self.lengths:
+            return formula.Rods.unit(self.n)
+        n = self.n
+        slacks = (hy.par[n + 1], hy.par[n + 2]) if is_double(fp_type) else None
+        return formula.Rods([hy.par[1 + k] for k in range(n)], HeyokaOps(fp_type), slacks)
 
     def point_expressions(self, a, fp_type):
-        return hinge_expressions(list(a), fp_type)
+        z = self._hinges(list(a), HeyokaOps(fp_type), fp_type)
+        return [c for h in z for c in (h.re, h.im)]
 
     def point_jets(self, a, c, fp_type):
         """The same formula pushed through second-order jets (``z``, ``J``, ``J c``, ``z_ab c^a c^b``)."""
         k = len(a)
         jets = [Jet.variable(ai, ci, i, k) for i, (ai, ci) in enumerate(zip(a, c))]
-        z = formula.hinges(jets, hy.par[0], JetOps(HeyokaOps(fp_type)))
+        z = self._hinges(jets, JetOps(HeyokaOps(fp_type)), fp_type)
         return [part for h in z for part in (h.re, h.im)]
 
     def inverse_expressions(self, z, fp_type):
         """The closed-form inverse (:func:`charts.suspension_formula.parameters`) of hinges ``z`` in chart rod order."""
         z = list(z)
         hinges = [Cx(z[2 * k], z[2 * k + 1]) for k in range(self.n - 1)]
-        return formula.parameters(hinges, hy.par[0], HeyokaOps(fp_type))
+        if self.link_base:
+            n = self.n
+            hinges = formula.chart_frame_hinges(hinges, hy.par[0], hy.par[n + 3], [hy.par[n + 4 + k] for k in range(n)])
+        return formula.parameters(hinges, hy.par[0], HeyokaOps(fp_type), self.rods(fp_type))
 
     def quality_expressions(self, a):
         """``cos(phi_m)`` for every latitude (the poles), then the fold terms ``q_A``, ``q_B``
         (:func:`charts.suspension_formula.fold_qualities`)."""
         a = list(a)
-        return [hy.cos(x) for x in a[:-1]] + formula.fold_qualities(a, hy.par[0], HeyokaOps(float))
+        return [hy.cos(x) for x in a[:-1]] + formula.fold_qualities(a, hy.par[0], HeyokaOps(float), self.rods(float))

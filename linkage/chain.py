@@ -14,12 +14,15 @@ so the kinetic energy (dynamics seed, section 1) is::
 with ``A`` tridiagonal: ``A_jj = M_j + (lambda_j l_j + lambda_{j+1} l_{j+1}) / 3`` and
 ``A_{j,j+1} = lambda_{j+1} l_{j+1} / 6``; ``v`` the interleaved real hinge velocity.
 
-The configuration space (:meth:`Chain.topology`) is a sphere ``S^(n-2)`` for
-unit rods with ``n - 2 < L < n``: there the suspension charts of ``charts/``
-give an atlas (:meth:`Chain.atlas`).  Elsewhere it may be a pair of tori, a
-surface of higher genus, singular, or empty (refused); its free motion is
-integrated in hinge coordinates (``free_motion(..., method="hinges")``), and
-:meth:`Chain.diagonal_space` parameterises it by the diagonals ``|p_k|``.
+The configuration space (:meth:`Chain.topology`) is a sphere ``S^(n-2)`` where
+a side of the polygon ``(l_1, ..., l_n, L)`` dominates: the base ``L`` for
+``R - 2 mu < L < R`` (``R`` the sum of the lengths, ``mu`` the shortest;
+``n - 2 < L < n`` for unit rods), or a link.  There the suspension charts of
+``charts/``, built on the dominant side, give an atlas (:meth:`Chain.atlas`).
+Elsewhere it may be a pair of tori, a surface of higher genus, singular, or
+empty (refused); its free motion is integrated in hinge coordinates
+(``free_motion(..., method="hinges")``, which also serves every chain with an
+atlas), and :meth:`Chain.diagonal_space` parameterises it by the diagonals ``|p_k|``.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from charts.chain_geometry import (
     closure_residual,
     hinges_from_rods,
     rod_vectors,
+    sphere_range,
     to_complex,
     to_real,
     validate_chain,
@@ -156,7 +160,9 @@ class Chain:
         Generic means no signed sum ``sum_k eps_k l_k`` equals ``L``; otherwise
         the collinear configurations ``e_k = eps_k l_k`` are singular points
         (the constraint Jacobian loses rank there), and the message names them.
-        Unit rods with ``n - 2 < L < n`` are generic without enumerating subsets.
+        A chain with an atlas (:attr:`has_atlas`: a sphere) is generic: unit rods with ``n - 2 < L < n``
+        without enumerating subsets (every signed sum is ``n`` or at most ``n - 2``), other lengths by
+        :meth:`topology`, which reports a sphere only where no signed sum equals ``L``.
         """
         if self.has_atlas:
             return
@@ -207,18 +213,35 @@ class Chain:
     def _chart_refusal(self) -> str | None:
         """Why this chain has no suspension atlas, or ``None`` if it has one."""
         hint = "; integrate its free motion with free_motion(..., method='hinges') instead (any generic lengths)"
-        if not self.unit_rods:
-            return (f"suspension charts (atlas, metric, free_motion(..., method='charts')) are built for unit "
-                    f"rods only, and {self!r} has rods of other lengths" + hint)
-        try:
-            validate_chain(self.n, self.L)
-        except ValueError as err:
-            return f"{err}; suspension charts (atlas, metric, method='charts') exist only there" + hint
-        return None
+        if self.unit_rods:
+            try:
+                validate_chain(self.n, self.L)
+            except ValueError as err:
+                return f"{err}; suspension charts (atlas, metric, method='charts') exist only there" + hint
+            return None
+        if self.n > MAX_RODS:
+            return (f"deciding whether the configuration space is a sphere enumerates 2^n signed sums: suspension "
+                    f"charts of links of other lengths need n <= {MAX_RODS}, got n = {self.n}" + hint)
+        t = self.topology()
+        if t.kind == "sphere":
+            return None
+        lo, hi = sphere_range(self.lengths)
+        return (f"suspension charts (atlas, metric, free_motion(..., method='charts')) exist only where the "
+                f"configuration space is a sphere, a side of the polygon (l_1, ..., l_n, L) dominant (the base L "
+                f"for {lo!r} < L < {hi!r}; away from the ends by more than topology()'s tolerance); here it is "
+                f"{t.summary()}" + hint)
 
     @property
     def has_atlas(self) -> bool:
-        """Whether :meth:`atlas` exists: unit rods with ``n - 2 < L < n`` (the sphere ``S^(n-2)``)."""
+        """Whether :meth:`atlas` exists: where the configuration space is the sphere ``S^(n-2)``, some side of
+        the polygon ``(l_1, ..., l_n, L)`` dominant (the charts' base: ``L`` for ``R - 2 mu < L < R``, ``R`` the
+        sum of the lengths, ``mu`` the shortest; else a link).
+
+        For unit rods ``n - 2 < L < n`` exactly (as :func:`charts.chain_geometry.validate_chain`); for lengths
+        given as a sequence as :meth:`topology` decides, which counts ``L`` within ``RTOL * P`` of an end as
+        that end (singular or a point: ``L = 8.2`` for the lengths ``(1, 2, 1.5, 2.5, 1.2)`` is their
+        stretched configuration, although ``8.2`` rounds below their exact sum).
+        """
         return self._chart_refusal() is None
 
     def atlas(self, switch_threshold: float = 0.25) -> SuspensionAtlas:
@@ -227,10 +250,11 @@ class Chain:
         refusal = self._chart_refusal()
         if refusal is not None:
             raise ValueError(refusal)
+        lengths = self.n if self.unit_rods else self.lengths
         if not isinstance(switch_threshold, (int, float)):  # not a number: the atlas refuses it with its message
-            return SuspensionAtlas(self.n, self.L, switch_threshold)
+            return SuspensionAtlas(lengths, self.L, switch_threshold)
         if switch_threshold not in self._atlases:
-            self._atlases[switch_threshold] = SuspensionAtlas(self.n, self.L, switch_threshold)
+            self._atlases[switch_threshold] = SuspensionAtlas(lengths, self.L, switch_threshold)
         return self._atlases[switch_threshold]
 
     def metric(self, atlas: SuspensionAtlas | None = None) -> InducedMetric:

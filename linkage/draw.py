@@ -8,8 +8,8 @@ coordinates of :func:`sphere_coordinates`), the energy error and the chart
 timeline against time (:func:`draw_energy_error`, :func:`draw_chart_timeline`),
 and the moving chain (:func:`animation`, written to a file by :func:`animate`).
 
-A chain without suspension charts (rods of other lengths, or unit rods outside
-``n - 2 < L < n``: :attr:`~linkage.Chain.has_atlas` false) has no chart and no
+A chain without suspension charts (:attr:`~linkage.Chain.has_atlas` false: its
+configuration space is not a sphere with ``L`` the dominant side) has no chart and no
 configuration sphere: its motions are drawn as the chain, the energy error and
 a timeline in hinge space, and the sphere pictures refuse it by name.
 
@@ -188,7 +188,7 @@ def sphere_coordinates(motion: ChainMotion, times: ArrayLike) -> NDArray:
     if not motion.chain.has_atlas:
         raise ValueError(
             f"sphere coordinates are read in chart 0 of the suspension atlas, and {motion.chain!r} has none "
-            f"(unit rods with n - 2 < L < n only): {motion.chain.topology().summary()}")
+            f"(only a sphere with L its dominant side has one): {motion.chain.topology().summary()}")
     chart0 = motion.chain.atlas().charts[0]
     hinges = motion(real_array("times", times))[0]
     return chart0.sphere_point(chart0.get_parameters(motion.chain.to_point(hinges)))

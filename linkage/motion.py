@@ -157,7 +157,9 @@ def free_motion(
     * ``method="charts"``: in the atlas of suspension charts, switching chart
       at events (:func:`manifold.solve_chart_exp_ode`); gives chart
       parameters and the switch log; only where the chain has an atlas
-      (:attr:`Chain.has_atlas`: unit rods, ``n - 2 < L < n``), else ``ValueError``;
+      (:attr:`Chain.has_atlas`: the sphere with ``L`` its dominant side,
+      ``R - 2 mu < L < R``; ``n - 2 < L < n`` for unit rods), else ``ValueError``
+      naming ``method="hinges"``;
     * ``method="hinges"``: in hinge coordinates with the rod constraints and
       their multipliers (:func:`manifold.constrained.solve_constrained` on
       :class:`linkage.constraints.ChainSystem`); no chart, nothing singular,

@@ -12,8 +12,9 @@ Chains of unit rods with unit hinge masses are also covered, for any link
 lengths, by :meth:`linkage.diagonals.DiagonalSpace.sample` with
 ``measure='riemannian'`` (importance resampling: approximate, with an
 effective sample size); the two agree where both apply (``tests/test_sampling.py``).
-The functions here need the suspension atlas (unit rods, ``n - 2 < L < n``) and
-refuse other chains by name, pointing to that sampler.
+The functions here need the suspension atlas (:attr:`linkage.Chain.has_atlas`:
+the sphere with ``L`` its dominant side, ``R - 2 mu < L < R``; ``n - 2 < L < n``
+for unit rods) and refuse other chains by name, pointing to that sampler.
 """
 
 from __future__ import annotations
@@ -31,8 +32,8 @@ def _require_atlas(chain: Chain, what: str) -> None:
     """``ValueError`` naming the alternative unless ``chain`` has a suspension atlas."""
     if not chain.has_atlas:
         raise ValueError(
-            f"{what} samples through the suspension atlas, and {chain!r} has none (unit rods with n - 2 < L < n "
-            "only); for other chains use chain.diagonal_space().sample(size, rng, measure='riemannian') "
+            f"{what} samples through the suspension atlas, and {chain!r} has none (only a sphere with L "
+            "its dominant side has one); for other chains use chain.diagonal_space().sample(size, rng, measure='riemannian') "
             "(configurations, unit hinge masses) and HingeConstraints(chain).project_velocity for velocities")
 
 

@@ -64,6 +64,7 @@ class NumpyOps:
 
     where = staticmethod(np.where)
     abs = staticmethod(np.abs)
+    minimum = staticmethod(np.minimum)
     gt = staticmethod(np.greater)
     ge = staticmethod(np.greater_equal)
 
@@ -171,6 +172,11 @@ class HeyokaOps:
         """``|x| = select(x < 0, -x, x)``."""
         hy = self.hy
         return hy.select(hy.lt(x, 0.0), -x, x)
+
+    def minimum(self, x, y):
+        """``min(x, y) = select(x < y, x, y)``."""
+        hy = self.hy
+        return hy.select(hy.lt(x, y), x, y)
 
     def one_minus_sin(self, x):
         """``1 - sin x = 2 sin^2(pi/4 - x/2)``: no cancellation near ``x = pi/2``."""

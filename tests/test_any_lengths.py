@@ -50,7 +50,7 @@ CASES = [
     (EXAMPLE, 0.5, "manifold", {}, 10.0),  # betti (1, 6, 6, 1)
     (EXAMPLE, 3.0, "manifold", {}, 10.0),  # betti (1, 7, 7, 1)
     (EXAMPLE, 4.5, "manifold", {"hinge_masses": [1.0, 2.0, 0.5, 1.5]}, 10.0),
-    (EXAMPLE, 7.0, "sphere", {}, 10.0),  # the base dominates: S^3, not unit rods, so no atlas
+    (EXAMPLE, 7.0, "sphere", {}, 10.0),  # the base dominates: S^3, with an atlas of suspension charts
     (TORUS, 3.0, "tori", {}, TORUS_HORIZON),
     ((0.7, 1.9, 1.3, 2.2), 1.1, "manifold", {"rod_densities": [0.3, 1.0, 0.0, 2.0]}, 10.0),  # dense K^-1
 ]
@@ -59,7 +59,7 @@ CASES = [
 @pytest.mark.parametrize("lengths, L, kind, masses, T", CASES)
 def test_hinge_method_agrees_with_the_ambient_reference(lengths, L, kind, masses, T):
     chain = Chain(lengths, L, **masses)
-    assert chain.topology().kind == kind and not chain.has_atlas
+    assert chain.topology().kind == kind and chain.has_atlas == (kind == "sphere")
     h0, v0 = start(chain, np.random.default_rng(int(10 * L) + len(lengths)))
     ts = np.linspace(0, T, 41)
     # compact mode: one cold compile per (n, mass sparsity) in seconds (CI starts cold)
@@ -74,8 +74,13 @@ def test_hinge_method_agrees_with_the_ambient_reference(lengths, L, kind, masses
     assert hinges.closure_residuals.max() <= 1e-13
     rods = np.abs(chain.rods(hinges.hinges))  # each rod keeps its own length
     assert np.abs(rods / chain.lengths - 1).max() <= 1e-13
-    with pytest.raises(ValueError, match="no atlas"):
-        hinges.solution.parameters(ts[:2])
+    if chain.has_atlas:  # chart parameters on demand, and they map back to the hinges
+        charts, a, _ = hinges.solution.parameters(ts[:2])
+        back = [chain.atlas().get_point(int(i), x) for i, x in zip(charts, a)]
+        assert np.abs(chain.from_point(np.array(back)) - hinges.hinges[:2]).max() <= 1e-12
+    else:
+        with pytest.raises(ValueError, match="no atlas"):
+            hinges.solution.parameters(ts[:2])
 
 
 def test_a_torus_component_is_kept():
@@ -237,8 +242,20 @@ def test_non_generic_lengths_are_refused_naming_the_collinear_configuration(L):
         integrate_ambient(chain, h0, np.zeros(4, complex), 1.0)
 
 
-def test_charts_outside_unit_rods_name_the_hinge_method():
-    for chain in (Chain(EXAMPLE, 3.0), Chain(EXAMPLE, 7.0), Chain(4, 1.0)):
+#: A sphere whose dominant side is the link l_4 = 3.5 (sides (1, 1, 1, 3.5, L = 1), half the perimeter 3.75).
+LINK_DOMINANT = ((1.0, 1.0, 1.0, 3.5), 1.0)
+
+
+def test_charts_outside_the_spheres_name_the_hinge_method():
+    for chain in (Chain(EXAMPLE, 3.0), Chain(4, 1.0)):
+        assert not chain.has_atlas
         h0, v0 = start(chain, np.random.default_rng(0))
         with pytest.raises(ValueError, match=r"method='hinges'"):
             free_motion(chain, h0, v0, 1.0, method="charts")
+
+
+def test_a_sphere_dominated_by_a_link_has_an_atlas_on_that_link():
+    chain = Chain(*LINK_DOMINANT)
+    assert chain.topology().kind == "sphere" and chain.topology().dominant_side == 3 and chain.has_atlas
+    atlas = chain.atlas()
+    assert atlas.base == 3 and {c.family.key for c in atlas.charts} == {("suspension", 4, "link-base")}

@@ -56,7 +56,8 @@ def test_lengths_given_as_ones_are_unit_rods():
     assert np.array_equal(chain.mass_matrix, Chain(4, 2.5).mass_matrix)
     other = Chain([1, 2, 1.5, 2.5, 1.2], 3.0)
     assert not other.unit_rods and not other.has_atlas and other.n == 5
-    with pytest.raises(ValueError, match="unit rods only.*method='hinges'"):
+    with pytest.raises(ValueError, match="only where the configuration space is a sphere.*the base L for "
+                                         "6.2 < L < 8.2.*closed orientable 3-manifold.*method='hinges'"):
         other.atlas()
     with pytest.raises(ValueError):
         other.lengths[0] = 2.0  # read-only
