@@ -177,7 +177,7 @@ class Chain:
 
     def diagonal_space(self) -> DiagonalSpace:
         """The diagonal polytope ``D`` of free diagonals ``(|p_2|, ..., |p_{n-1}|)`` (``n >= 3``)."""
-        return DiagonalSpace(self.lengths, self.L)
+        return DiagonalSpace(self.lengths, self.L, self.mass_matrix)
 
     def from_diagonals(self, x: ArrayLike, flips: ArrayLike) -> NDArray:
         """Complex hinges ``(..., n-1)`` with free diagonals ``x`` ``(..., n-2)`` and flips ``(..., n-1)``.

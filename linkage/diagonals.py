@@ -233,14 +233,21 @@ def hinge_jacobian(lengths: ArrayLike, L: float, x: ArrayLike, flips: ArrayLike)
     return (j == m) * (p / np.abs(p))[..., :, None] + 1j * p[..., :, None] * dphi
 
 
-def riemannian_density(lengths: ArrayLike, L: float, x: ArrayLike, flips: ArrayLike) -> NDArray:
-    """``sqrt(det(J^T J))``: Riemannian volume of the kinetic metric with unit hinge masses per ``dx``, at fixed flips.
+def riemannian_density(lengths: ArrayLike, L: float, x: ArrayLike, flips: ArrayLike,
+                       mass_matrix: ArrayLike | None = None) -> NDArray:
+    """``sqrt(det(J^T K J))``: Riemannian volume of the kinetic metric per ``dx``, at fixed flips.
 
-    ``J`` is :func:`hinge_jacobian` as a real ``(2(n-1), n-2)`` matrix (``K = I``
-    on interleaved hinge coordinates).  It grows like ``slack^(-1/2)`` at a wall.
+    ``J`` is :func:`hinge_jacobian`, ``K = A (x) I_2`` the kinetic metric on
+    interleaved hinge coordinates for the ``(n-1, n-1)`` hinge ``mass_matrix``
+    ``A`` (``Chain.mass_matrix``; ``None``: unit hinge masses, ``A = I``).  The
+    density grows like ``slack^(-1/2)`` at a wall.
     """
     J = hinge_jacobian(lengths, L, x, flips)
-    G = np.real(np.einsum("...jm,...jk->...mk", np.conj(J), J))
+    A = np.eye(J.shape[-2]) if mass_matrix is None else np.asarray(mass_matrix, dtype=float)
+    if A.shape != (J.shape[-2],) * 2:
+        raise ValueError(f"mass_matrix must have shape {(J.shape[-2],) * 2} (one row per hinge), got {A.shape}")
+    # Re(J^H A J) = J_r^T (A (x) I_2) J_r for a real symmetric A
+    G = np.real(np.einsum("...jm,jl,...lk->...mk", np.conj(J), A, J))
     return np.sqrt(np.linalg.det(G))
 
 
@@ -252,7 +259,7 @@ class DiagonalSample:
     ``measure`` says what they are distributed by: 'lebesgue' -- ``x`` uniform in
     ``D`` (Lebesgue ``dx``) and ``flips`` uniform on ``{+-1}^(n-1)``, independent;
     'riemannian' -- configurations uniform in the Riemannian volume of the
-    kinetic metric with unit hinge masses (approximately: importance resampling,
+    kinetic metric (approximately: importance resampling,
     see :meth:`DiagonalSpace.sample`).  ``acceptance`` is the rejection
     sampler's acceptance rate, ``ess`` the effective size of the weighted pool.
     """
@@ -287,13 +294,20 @@ class DiagonalSpace:
         of fan triangle ``T_k``, ``k = 2..n``.
     lower, upper
         The cuboid ``r_k <= d_k <= R_k`` (``k = 2..n-1``) that contains ``D``.
+    mass_matrix
+        The hinge mass matrix of the kinetic metric for the 'riemannian'
+        samples (``None``: unit hinge masses); ``Chain.diagonal_space`` passes the chain's.
     """
 
-    def __init__(self, lengths: ArrayLike, L: float) -> None:
+    def __init__(self, lengths: ArrayLike, L: float, mass_matrix: ArrayLike | None = None) -> None:
         self.lengths, self.L = validate_lengths(lengths, L)
         self.n = self.lengths.size
         if self.n < 3:
             raise ValueError(f"a diagonal space needs n >= 3 rods (n = 2 has no free diagonal), got n = {self.n}")
+        self.mass_matrix = None if mass_matrix is None else np.asarray(mass_matrix, dtype=float)
+        if self.mass_matrix is not None and self.mass_matrix.shape != (self.n - 1, self.n - 1):
+            raise ValueError(f"mass_matrix must have shape {(self.n - 1, self.n - 1)} (one row per hinge), "
+                             f"got {self.mass_matrix.shape}")
         self.dim = self.n - 2
         self.A, self.b = self._half_spaces()
         R = np.cumsum(self.lengths)
@@ -403,7 +417,8 @@ class DiagonalSpace:
             'lebesgue': ``x`` uniform in ``D`` and ``flips`` uniform, i.e. the
             configurations have density ``1 / sqrt(det J^T J)`` with respect to
             the Riemannian volume.  'riemannian': configurations uniform in the
-            Riemannian volume of the kinetic metric with unit hinge masses: a
+            Riemannian volume of the kinetic metric (of :attr:`mass_matrix`;
+            unit hinge masses if it is ``None``): a
             pool of ``pool * N`` 'lebesgue' samples weighted by
             :func:`riemannian_density` and resampled with replacement.  Exact
             only as ``pool -> oo``; the weights grow like ``slack^(-1/2)`` at the
@@ -431,7 +446,7 @@ class DiagonalSpace:
         hinges = _hinges(self.lengths, d, s, flips)[0]
         if measure == "lebesgue":
             return DiagonalSample(x, flips, hinges, method, measure, acceptance)
-        w = riemannian_density(self.lengths, self.L, x, flips)
+        w = riemannian_density(self.lengths, self.L, x, flips, self.mass_matrix)
         ess = float(w.sum() ** 2 / (w * w).sum())
         pick = rng.choice(M, size=int(N), replace=True, p=w / w.sum())
         return DiagonalSample(x[pick], flips[pick], hinges[pick], method, measure, acceptance, ess)

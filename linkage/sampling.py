@@ -8,8 +8,8 @@ ergodic free motion would fill.  The work is done in :mod:`manifold.sampling`
 on the chain's suspension atlas (exact rejection through the best chart); this
 module converts to complex hinges.
 
-Chains of unit rods with unit hinge masses are also covered, for any link
-lengths, by :meth:`linkage.diagonals.DiagonalSpace.sample` with
+Chains of any link lengths and masses are also covered by
+:meth:`linkage.diagonals.DiagonalSpace.sample` (``chain.diagonal_space()``) with
 ``measure='riemannian'`` (importance resampling: approximate, with an
 effective sample size); the two agree where both apply (``tests/test_sampling.py``).
 The functions here need the suspension atlas (:attr:`linkage.Chain.has_atlas`:
@@ -34,7 +34,7 @@ def _require_atlas(chain: Chain, what: str) -> None:
         raise ValueError(
             f"{what} samples through the suspension atlas, and {chain!r} has none (only a sphere with L "
             "its dominant side has one); for other chains use chain.diagonal_space().sample(size, rng, measure='riemannian') "
-            "(configurations, unit hinge masses) and HingeConstraints(chain).project_velocity for velocities")
+            "(configurations, in the chain's kinetic metric) and HingeConstraints(chain).project_velocity for velocities")
 
 
 def sample_configurations(chain: Chain, size: int, rng: np.random.Generator) -> NDArray:

@@ -12,10 +12,11 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from hypothesis import assume, given
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from charts.chain_geometry import rod_vectors
+from linkage import Chain
 from linkage.diagonal_demo import circular_configurations, flip_patterns, plot_sampled_configurations
 from linkage.diagonals import (
     DiagonalSpace,
@@ -433,3 +434,29 @@ def test_sampled_configurations_figure_is_written(tmp_path):
     assert len(fig.axes) == 4  # two chains by two flip vectors
     fig.savefig(tmp_path / "c.png", dpi=40)
     assert (tmp_path / "c.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@given(seed=st.integers(0, 2**16), densities=st.booleans())
+@settings(max_examples=25, deadline=None)
+def test_riemannian_density_with_masses_against_finite_differences(seed, densities):
+    """``sqrt(det(J^T K J))`` with the chain's kinetic metric, ``J`` by central differences of ``from_diagonals``
+    (not the analytic ``hinge_jacobian``); the diagonal space of a chain carries its masses."""
+    rng = np.random.default_rng(seed)
+    chain = Chain([1.0, 2.0, 1.5, 2.5, 1.2], 4.3, hinge_masses=10.0 ** rng.uniform(-2, 2, 4),
+                  rod_densities=rng.uniform(0, 2, 5) if densities else 0.0)
+    space = chain.diagonal_space()
+    s = space.sample(1, rng)
+    x, flips = s.x[0], s.flips[0]
+    h = 1e-6
+    def point(y):
+        return chain.to_point(chain.from_diagonals(y, flips))
+
+    cols = [(point(x + h * e) - point(x - h * e)) / (2 * h) for e in np.eye(space.dim)]
+    J = np.stack(cols, axis=-1)
+    expected = np.sqrt(np.linalg.det(J.T @ chain.ambient_metric @ J))
+    got = riemannian_density(chain.lengths, chain.L, x, flips, chain.mass_matrix)
+    assert np.isclose(got, expected, rtol=1e-6)
+    # uniform masses c scale the volume by c^(dim/2)
+    assert np.isclose(riemannian_density(chain.lengths, chain.L, x, flips, 3.0 * np.eye(4)),
+                      3.0 ** (space.dim / 2) * riemannian_density(chain.lengths, chain.L, x, flips), rtol=1e-12)
+    assert np.array_equal(space.mass_matrix, chain.mass_matrix)
