@@ -187,12 +187,25 @@ def test_point_round_trip_everywhere_including_poles(case):
     assert np.abs(chart.get_point(chart.get_parameters(p)) - p).max() <= 1e-12 * ls.sum()
 
 
+def _sphere_slack(ls: np.ndarray, L: float) -> float:
+    """Distance of the polygon ``(ls, L)`` from the ends of its sphere regime: ``min(P/2 - s_j, s_j + s_i - P/2)``
+    for the dominant side ``s_j``."""
+    sides = np.append(ls, L)
+    j = int(np.argmax(sides))
+    half = sides.sum() / 2
+    return float(min(half - sides[j], np.min(sides[j] + np.delete(sides, j) - half)))
+
+
 @given(cases(3, 6))
 @settings(max_examples=30)
 def test_jacobian_and_inverse_derivative_match_finite_differences(case):
     """``J`` (from the jets) against central differences of the map, and the inverse's derivative along a
     tangent ``v = J c`` against ``c``."""
     (ls, L), a, order = case
+    # near an end of the sphere range the map curves like 1 / sqrt(slack): differences of any step in the sweep
+    # miss J there (L = 1.0002, unit rods: best 1.9e-2), so the jets are checked there against symbolic derivatives
+    # (test_jets_agree_with_symbolic_differentiation) and here only away from the ends
+    assume(_sphere_slack(ls, L) >= 1e-3 * (ls.sum() + L))
     chart = SuspensionChart(ls, L, chart_order(ls, L, order))
     a = np.append(np.clip(a[:-1], -1.3, 1.3), a[-1])  # keep the stencil inside the chart
     J = chart.jacobian(a)
