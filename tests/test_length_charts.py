@@ -35,11 +35,11 @@ EXAMPLE = (1.0, 2.0, 1.5, 2.5, 1.2)  # the tutorial's chain: a sphere S^3 with L
 
 
 @st.composite
-def sphere_chains(draw, n_min: int = 3, n_max: int = 6):
+def sphere_chains(draw, n_min: int = 3, n_max: int = 6, ends: bool = True):
     """Lengths and ``L`` with a dominant side: moderate lengths, a very short and a very long link, or two
     nearly equal shortest links; the dominant side ``L`` (mostly) or a link, uniform in its range
     ``(R' - 2 mu', R')`` (``R'``, ``mu'``: sum and minimum of the other sides) or within 1e-12 .. 1e-3 of its
-    width from an end."""
+    width from an end (not with ``ends=False``)."""
     n = draw(st.integers(n_min, n_max))
     kind = draw(st.sampled_from(["moderate", "short-and-long", "near-equal"]))
     sides = [draw(st.floats(0.3, 3.0)) for _ in range(n)]  # the sides other than the dominant one
@@ -50,7 +50,7 @@ def sphere_chains(draw, n_min: int = 3, n_max: int = 6):
         sides[0], sides[1] = m, m * (1 + draw(st.sampled_from([-1, 1])) * 10.0 ** draw(st.floats(-9, -2)))
     sides = list(np.array(sides)[np.array(draw(st.permutations(range(n))))])
     lo, hi = sphere_range(sides)
-    where = draw(st.sampled_from(["uniform", "low", "high"]))
+    where = draw(st.sampled_from(["uniform", "low", "high"] if ends else ["uniform"]))
     if where == "uniform":
         dominant = lo + (hi - lo) * draw(st.floats(1e-3, 1 - 1e-3))
     else:
@@ -68,9 +68,9 @@ def sphere_chains(draw, n_min: int = 3, n_max: int = 6):
     return ls, float(L)
 
 
-def cases(n_min: int = 3, n_max: int = 6):
+def cases(n_min: int = 3, n_max: int = 6, ends: bool = True):
     """A chain, chart parameters (poles and circle poles among them) and a rod order."""
-    return sphere_chains(n_min, n_max).flatmap(
+    return sphere_chains(n_min, n_max, ends).flatmap(
         lambda c: st.tuples(st.just(c), chart_parameters(c[0].size), rod_orders(c[0].size)))
 
 
@@ -187,25 +187,15 @@ def test_point_round_trip_everywhere_including_poles(case):
     assert np.abs(chart.get_point(chart.get_parameters(p)) - p).max() <= 1e-12 * ls.sum()
 
 
-def _sphere_slack(ls: np.ndarray, L: float) -> float:
-    """Distance of the polygon ``(ls, L)`` from the ends of its sphere regime: ``min(P/2 - s_j, s_j + s_i - P/2)``
-    for the dominant side ``s_j``."""
-    sides = np.append(ls, L)
-    j = int(np.argmax(sides))
-    half = sides.sum() / 2
-    return float(min(half - sides[j], np.min(sides[j] + np.delete(sides, j) - half)))
-
-
-@given(cases(3, 6))
+@given(cases(3, 6, ends=False))
 @settings(max_examples=30)
 def test_jacobian_and_inverse_derivative_match_finite_differences(case):
     """``J`` (from the jets) against central differences of the map, and the inverse's derivative along a
     tangent ``v = J c`` against ``c``."""
     (ls, L), a, order = case
-    # near an end of the sphere range the map curves like 1 / sqrt(slack): differences of any step in the sweep
-    # miss J there (L = 1.0002, unit rods: best 1.9e-2), so the jets are checked there against symbolic derivatives
-    # (test_jets_agree_with_symbolic_differentiation) and here only away from the ends
-    assume(_sphere_slack(ls, L) >= 1e-3 * (ls.sum() + L))
+    # drawn away from the ends of the sphere range (ends=False): there the map curves like 1 / sqrt(slack) and
+    # differences of any step in the sweep miss J (L = 1.0002, unit rods: best 1.9e-2); the jets are checked at
+    # the ends against symbolic derivatives (test_jets_agree_with_symbolic_differentiation)
     chart = SuspensionChart(ls, L, chart_order(ls, L, order))
     a = np.append(np.clip(a[:-1], -1.3, 1.3), a[-1])  # keep the stencil inside the chart
     J = chart.jacobian(a)
