@@ -233,6 +233,16 @@ def hinge_jacobian(lengths: ArrayLike, L: float, x: ArrayLike, flips: ArrayLike)
     return (j == m) * (p / np.abs(p))[..., :, None] + 1j * p[..., :, None] * dphi
 
 
+def _hinge_mass_matrix(mass_matrix: ArrayLike | None, hinges: int) -> NDArray | None:
+    """``mass_matrix`` as a float ``(hinges, hinges)`` array (``None`` stays ``None``); ``ValueError`` on another shape."""
+    if mass_matrix is None:
+        return None
+    A = np.asarray(mass_matrix, dtype=float)
+    if A.shape != (hinges, hinges):
+        raise ValueError(f"mass_matrix must have shape {(hinges, hinges)} (one row per hinge), got {A.shape}")
+    return A
+
+
 def riemannian_density(lengths: ArrayLike, L: float, x: ArrayLike, flips: ArrayLike,
                        mass_matrix: ArrayLike | None = None) -> NDArray:
     """``sqrt(det(J^T K J))``: Riemannian volume of the kinetic metric per ``dx``, at fixed flips.
@@ -243,9 +253,8 @@ def riemannian_density(lengths: ArrayLike, L: float, x: ArrayLike, flips: ArrayL
     density grows like ``slack^(-1/2)`` at a wall.
     """
     J = hinge_jacobian(lengths, L, x, flips)
-    A = np.eye(J.shape[-2]) if mass_matrix is None else np.asarray(mass_matrix, dtype=float)
-    if A.shape != (J.shape[-2],) * 2:
-        raise ValueError(f"mass_matrix must have shape {(J.shape[-2],) * 2} (one row per hinge), got {A.shape}")
+    A = _hinge_mass_matrix(mass_matrix, J.shape[-2])
+    A = np.eye(J.shape[-2]) if A is None else A
     # Re(J^H A J) = J_r^T (A (x) I_2) J_r for a real symmetric A
     G = np.real(np.einsum("...jm,jl,...lk->...mk", np.conj(J), A, J))
     return np.sqrt(np.linalg.det(G))
@@ -304,10 +313,7 @@ class DiagonalSpace:
         self.n = self.lengths.size
         if self.n < 3:
             raise ValueError(f"a diagonal space needs n >= 3 rods (n = 2 has no free diagonal), got n = {self.n}")
-        self.mass_matrix = None if mass_matrix is None else np.asarray(mass_matrix, dtype=float)
-        if self.mass_matrix is not None and self.mass_matrix.shape != (self.n - 1, self.n - 1):
-            raise ValueError(f"mass_matrix must have shape {(self.n - 1, self.n - 1)} (one row per hinge), "
-                             f"got {self.mass_matrix.shape}")
+        self.mass_matrix = _hinge_mass_matrix(mass_matrix, self.n - 1)
         self.dim = self.n - 2
         self.A, self.b = self._half_spaces()
         R = np.cumsum(self.lengths)

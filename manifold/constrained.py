@@ -430,7 +430,8 @@ class ConstrainedGeometry:
         # the speed scale of the fastest motion: sqrt(2 E tr(K^-1)) / N.  With sqrt(2 E / tr K), the heavy masses'
         # speed, hinge masses 1e-3 and 1e2 (n = 3) were damped 160x too slowly and drifted off c = 0 by 3.3e-12
         # over T = 20 (unit masses: 9e-16); for equal masses the two agree
-        self.speed_factor = float(np.sqrt(np.trace(np.linalg.inv(K)))) / K.shape[0]
+        trace_inverse = sum(row[i] for i, row in enumerate(_exact_inverse(K)))  # cached: the layout's K^-1
+        self.speed_factor = float(np.sqrt(float(trace_inverse))) / K.shape[0]
         self.length_scale = float(system.length_scale)
 
     def __call__(self, x: NDArray, v: NDArray, r: NDArray | None = None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
