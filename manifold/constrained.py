@@ -129,6 +129,26 @@ class ConstrainedSystem(ABC):
             rows.append([hy.diff(ck, xj) if n in used else None for xj, n in zip(x, names)])
         return rows
 
+    def multiplier_pivots(self, x: list[Expr], p: list[Expr], inverse_metric: list[list[Expr | None]],
+                          fp_type: Any) -> list[Expr] | None:
+        """The pivots ``D_k`` of ``M = G K^{-1} G^T = L D L^T``, written without cancellation, or ``None``.
+
+        The generic recursion ``D_k = M_kk - L_{k,k-1}^2 D_{k-1}`` subtracts,
+        and loses ``cond(M) eps`` where constraint gradients are nearly
+        dependent; a system that knows its rows can write ``D_k`` as a sum of
+        non-negative terms instead.  Default ``None``: the generic recursion.
+
+        Parameters
+        ----------
+        x, p
+            The variables and the :attr:`parameters`, as in :meth:`constraint_expressions`.
+        inverse_metric
+            ``K^{-1}`` as ``heyoka.par`` entries, ``None`` off its sparsity pattern.
+        fp_type
+            The precision of constants.
+        """
+        return None
+
     def velocity_term_expressions(self, x: list[Expr], v: list[Expr], G: list[list[Expr | None]]) -> list[Expr]:
         """``(dG/dt) v``, i.e. ``v^T (nabla^2 c_k) v`` for each ``k`` (default: differentiate ``G v`` along ``v``)."""
         out = []
@@ -229,6 +249,8 @@ class ConstrainedPieces:
         Constraints, sparse Jacobian rows and ``G v``.
     W, M
         ``K^{-1} G^T`` and the multiplier matrix ``G K^{-1} G^T`` (lower triangle), ``None`` for structural zeros.
+    pivots
+        The system's :meth:`ConstrainedSystem.multiplier_pivots` of ``M``, or ``None``.
     """
 
     def __init__(self, system: ConstrainedSystem, layout: ConstrainedLayout, fp_type: Any) -> None:
@@ -236,7 +258,8 @@ class ConstrainedPieces:
         self.fp = fp_type
         self.x = [hy.expression(f"x{i}") for i in range(N)]
         self.v = [hy.expression(f"v{i}") for i in range(N)]
-        self.c = system.constraint_expressions(self.x, [hy.par[1 + i] for i in range(layout.n_parameters)], fp_type)
+        params = [hy.par[1 + i] for i in range(layout.n_parameters)]
+        self.c = system.constraint_expressions(self.x, params, fp_type)
         if len(self.c) != system.n_constraints:
             raise ValueError(f"constraint_expressions gave {len(self.c)} constraints, the system declares "
                              f"{system.n_constraints}")
@@ -252,10 +275,13 @@ class ConstrainedPieces:
         self.M = [[_sum_or_none([gki * wil for gki, wil in zip(self.G[k], [row[l] for row in self.W])
                                  if gki is not None and wil is not None]) if l <= k else None
                    for l in range(m)] for k in range(m)]
+        self.pivots = system.multiplier_pivots(self.x, params, Kinv, fp_type)
+        if self.pivots is not None and len(self.pivots) != m:
+            raise ValueError(f"multiplier_pivots gave {len(self.pivots)} pivots, the system declares {m} constraints")
 
     def correction(self, r: list[Expr]) -> list[Expr]:
         """``K^{-1} G^T M^{-1} r``: the K-smallest ``d`` with ``G d = r``."""
-        lam = ldl_solve(self.M, r)
+        lam = ldl_solve(self.M, r, self.pivots)
         return [_sum_or_none([w * lk for w, lk in zip(row, lam) if w is not None]) or hy.expression(self.fp(0))
                 for row in self.W]
 

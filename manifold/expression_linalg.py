@@ -45,7 +45,8 @@ def cholesky_solve(g: Matrix, rhs: Sequence[hy.expression]) -> list[hy.expressio
 SparseMatrix = Sequence[Sequence["hy.expression | None"]]
 
 
-def ldl_solve(M: SparseMatrix, rhs: Sequence[hy.expression]) -> list[hy.expression]:
+def ldl_solve(M: SparseMatrix, rhs: Sequence[hy.expression],
+              pivots: Sequence[hy.expression] | None = None) -> list[hy.expression]:
     """Solve ``M x = rhs`` for symmetric positive definite ``M`` with structural zeros (``None``).
 
     ``M = L D L^T`` with ``L`` unit lower triangular (lower triangle of ``M``
@@ -58,7 +59,10 @@ def ldl_solve(M: SparseMatrix, rhs: Sequence[hy.expression]) -> list[hy.expressi
 
     An entry of ``L`` is ``None`` when every term of its sum is, so a banded
     ``M`` costs ``O(k b^2)`` nodes: a tridiagonal one is the Thomas recursion.
-    Stable without pivoting because ``M`` is positive definite.
+    Stable without pivoting because ``M`` is positive definite.  ``pivots``,
+    if given, are the ``D_j`` written by the caller: the recursion above
+    subtracts, and loses ``cond(M) eps`` when ``M`` is a Gram matrix of nearly
+    dependent rows, which a caller that knows the rows can avoid.
     """
     k = len(rhs)
     # entries are hy.expression or None; heyoka publishes no types, and mypy cannot narrow L[i][m] by a test
@@ -66,7 +70,9 @@ def ldl_solve(M: SparseMatrix, rhs: Sequence[hy.expression]) -> list[hy.expressi
     LD: list[list[Any]] = [[None] * k for _ in range(k)]  # L_im D_m, reused
     inv_D: list[hy.expression] = []
     for j in range(k):
-        inv_D.append(1.0 / _minus_sum(M[j][j], [LD[j][m] * L[j][m] for m in range(j) if L[j][m] is not None]))
+        D = pivots[j] if pivots is not None else _minus_sum(M[j][j], [LD[j][m] * L[j][m] for m in range(j)
+                                                                     if L[j][m] is not None])
+        inv_D.append(1.0 / D)
         for i in range(j + 1, k):
             terms = [LD[i][m] * L[j][m] for m in range(j) if L[i][m] is not None and L[j][m] is not None]
             if M[i][j] is None and not terms:
