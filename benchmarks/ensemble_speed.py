@@ -16,8 +16,10 @@ absolute times are noise on a shared machine):
    serial SIMD), threads (serial SIMD / threads SIMD);
 2. a Dask ``LocalCluster`` (one single-threaded worker process per core)
    against the threads backend for 256 trajectories, once the workers have
-   compiled: the overhead ``dask / threads - 1`` at ``T`` and at ``10 T``,
-   and Dask's own round trip for as many trivial tasks (its floor).
+   compiled: the overhead ``dask / threads - 1`` at ``T`` and at ``10 T``, as
+   quartiles over ``--rounds`` paired runs (single timings on a shared
+   machine scatter by 20 %), with one chunk per worker (the default) and with
+   four; and Dask's own round trip for as many trivial tasks (its floor).
 
 Every run is checked against the loop: the largest hinge difference is printed.
 """
@@ -103,29 +105,39 @@ def _identity(x: object) -> object:
     return x
 
 
-def dask_overhead(n: int, count: int, T: float) -> dict:
-    """Section 2: at ``T`` and at ``10 T`` (ten times the work per task), and Dask's own round trip."""
+def dask_overhead(n: int, count: int, T: float, rounds: int) -> dict:
+    """Section 2: paired runs, Dask then threads, ``rounds`` times at ``T`` and at ``10 T``; the quartiles of
+    the per-pair ratio (a pair shares the machine's state, so the ratio is steadier than either time), for
+    one chunk per worker (the default) and for four; and Dask's own round trip for as many trivial tasks."""
     from distributed import Client, LocalCluster
 
     chain = Chain(n, n - 1.4)
     H, V = starts(chain, count, seed=1)
     cores = len(os.sched_getaffinity(0))
+    lanes = hy.recommended_simd_size()
     out = {}
     with LocalCluster(n_workers=cores, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
             Client(cluster) as client:
         free_motions(chain, H, V, T, backend="dask", client=client)  # every worker compiles (or loads) once
-        chunks = len(chunk_bounds(count, default_chunk_size(count, cores, hy.recommended_simd_size())))
-        floor, _, _ = best_of(lambda: client.gather([client.submit(_identity, k, pure=False) for k in range(chunks)]),
-                              repeats=10)
-        print(f"  Dask's own round trip for {chunks} trivial tasks (the floor of its overhead): {floor * 1e3:.0f} ms")
-        for length in (T, 10 * T):
-            dask_s, _, ens = best_of(lambda: free_motions(chain, H, V, length, backend="dask", client=client))
-            threads_s, share, ref = best_of(lambda: free_motions(chain, H, V, length, backend="threads"))
-            same = np.array_equal(ens.end_hinges, ref.end_hinges)
-            out[length] = dask_s / threads_s - 1
-            print(f"  {count} trajectories, T = {length:g}: threads {threads_s:.3f} s, Dask LocalCluster ({cores} worker "
-                  f"processes) {dask_s:.3f} s: overhead {100 * out[length]:+.0f} % (target < 20 %); "
-                  f"results identical: {same}; the threads run got {share:.2f} cores")
+        default = default_chunk_size(count, lanes, "dask", client)
+        for per_worker, size in ((1, default), (4, lanes * -(-count // (4 * cores * lanes)))):
+            chunks = len(chunk_bounds(count, size))
+            floor, _, _ = best_of(lambda: client.gather([client.submit(_identity, k, pure=False)
+                                                         for k in range(chunks)]), repeats=10)
+            for length in (T, 10 * T):
+                ratios, same = [], True
+                for _ in range(rounds):
+                    dask_s, _, ens = best_of(lambda: free_motions(chain, H, V, length, backend="dask", client=client,
+                                                                  chunk_size=size), repeats=1)
+                    threads_s, _, ref = best_of(lambda: free_motions(chain, H, V, length, backend="threads"), repeats=1)
+                    ratios.append(dask_s / threads_s)
+                    same &= bool(np.array_equal(ens.end_hinges, ref.end_hinges))
+                q = np.percentile(ratios, [25, 50, 75]) - 1
+                out[(per_worker, length)] = float(q[1])
+                print(f"  {count} trajectories, T = {length:g}, {chunks} chunks ({per_worker} per worker"
+                      f"{', the default' if size == default else ''}): Dask / threads - 1 over {rounds} pairs: median "
+                      f"{100 * q[1]:+.0f} % (quartiles {100 * q[0]:+.0f} %, {100 * q[2]:+.0f} %; target < 20 %); "
+                      f"results identical: {same}; Dask's round trip for {chunks} trivial tasks {floor * 1e3:.0f} ms")
     return out
 
 
@@ -136,6 +148,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--T", type=float, default=20.0)
     ap.add_argument("--dask-count", type=int, default=256)
     ap.add_argument("--no-dask", action="store_true")
+    ap.add_argument("--rounds", type=int, default=20, help="paired Dask/threads runs per setting")
     args = ap.parse_args(argv)
     print(f"1. throughput: {args.count} trajectories, n = {args.n}, T = {args.T:g} "
           f"(heyoka {hy.__version__}, {hy.recommended_simd_size()} SIMD lanes; load average "
@@ -143,7 +156,7 @@ def main(argv: list[str] | None = None) -> None:
     throughput(args.n, args.count, args.T)
     if not args.no_dask:
         print("2. Dask LocalCluster against threads")
-        dask_overhead(args.n, args.dask_count, args.T)
+        dask_overhead(args.n, args.dask_count, args.T, args.rounds)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from manifold.constrained_batch import solve_constrained_ensemble
-from manifold.ensemble import EnsembleSolution, backend_workers, chunk_bounds, default_chunk_size, run_chunks
+from manifold.ensemble import EnsembleSolution, chunk_bounds, default_chunk_size, run_chunks
 from manifold.precision import resolve_fp_type
 from manifold.progress import ProgressArgument
 from manifold.solution import SolveStatus
@@ -213,7 +213,7 @@ def free_motions(
     if batch_size not in (None, 1):
         raise ValueError(f"batch_size={batch_size!r}: SIMD batches run the hinge method in float64 with Baumgarte "
                          f"stabilisation only; method={method!r} with {sorted(kwargs)} runs single solves")
-    size = (default_chunk_size(len(X0), backend_workers(backend, client), 1) if chunk_size is None
+    size = (default_chunk_size(len(X0), 1, backend, client) if chunk_size is None
             else check_positive_int("chunk_size", chunk_size))
     bounds = chunk_bounds(len(X0), size)
     chunks = [functools.partial(solve_motion_chunk, chain, X0[i:j], V0[i:j], t_final, grid, method, kwargs)

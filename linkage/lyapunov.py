@@ -12,7 +12,7 @@ from typing import Any
 
 from numpy.typing import ArrayLike, NDArray
 
-from manifold.ensemble import backend_workers, chunk_bounds, default_chunk_size, map_chunks
+from manifold.ensemble import chunk_bounds, default_chunk_size, map_chunks
 from manifold.lyapunov import LyapunovResult, lyapunov_spectrum
 from manifold.progress import ProgressArgument
 from manifold.validation import check_positive_int
@@ -100,7 +100,7 @@ def lyapunov_exponents(
     others.  ``kwargs`` are those of :func:`lyapunov_exponent`.
     """
     _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, tangent_tol, project_velocity)
-    size = (default_chunk_size(len(X0), backend_workers(backend, client), 1) if chunk_size is None
+    size = (default_chunk_size(len(X0), 1, backend, client) if chunk_size is None
             else check_positive_int("chunk_size", chunk_size))
     bounds = chunk_bounds(len(X0), size)
     chunks = [functools.partial(lyapunov_chunk, chain, X0[i:j], V0[i:j], t_final, {"throw": False, **kwargs})

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, default_compact_mode, verdict
-from .ensemble import EnsembleSolution, backend_workers, chunk_bounds, default_chunk_size, run_chunks
+from .ensemble import EnsembleSolution, chunk_bounds, default_chunk_size, run_chunks
 from .progress import ProgressArgument
 from .solution import energy_violation
 from .steppers import MAX_TOLERANCE, taylor_relative_tolerance
@@ -110,7 +110,7 @@ def solve_constrained_ensemble(
         raise ValueError(f"x0 and v0 must have the same shape, got {x0.shape} and {v0.shape}")
     lanes = hy.recommended_simd_size() if batch_size is None else check_positive_int("batch_size", batch_size)
     n = x0.shape[0]
-    size = (default_chunk_size(n, backend_workers(backend, client), lanes) if chunk_size is None
+    size = (default_chunk_size(n, lanes, backend, client) if chunk_size is None
             else lanes * -(-check_positive_int("chunk_size", chunk_size) // lanes))
     bounds = chunk_bounds(n, size)
     chunks = [functools.partial(solve_constrained_chunk, system, x0[i:j], v0[i:j], t_final, grid, tol, rate,
