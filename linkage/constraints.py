@@ -32,6 +32,8 @@ projection of a position onto ``c = 0``.  Everything is float64.
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -397,9 +399,15 @@ class ChainSystem(ConstrainedSystem):
 
     @property
     def parameters(self) -> NDArray:
-        """``[L, l_1, ..., l_n]``: one compiled integrator serves every base, every set of lengths and every
-        mass model of one sparsity."""
-        return np.concatenate([[self.chain.L], self.chain.lengths])
+        """``[L, 1 / l_1^2, ..., 1 / l_n^2]`` (exact rationals of the float64 lengths): one compiled integrator
+        serves every base, every set of lengths and every mass model of one sparsity.
+
+        Numerical trap, of cost: heyoka cannot tell a quotient by ``l_k * l_k`` (parameters) from one by a
+        variable, and gives both the O(order^2) Taylor recursion of a quotient; a product with the parameter
+        ``1 / l_k^2`` costs O(order).  At n = 4 that took 50 of the 135 products and quotients of each step.
+        """
+        inverse_squares = [1 / Fraction(float(l)) ** 2 for l in self.chain.lengths]
+        return np.array([Fraction(float(self.chain.L)), *inverse_squares], dtype=object)
 
     @property
     def length_scale(self) -> float:
@@ -418,10 +426,30 @@ class ChainSystem(ConstrainedSystem):
         rods.append((L - hx[-1], -hy_[-1]))  # e_n = L - p_{n-1}
         return rods
 
+    def _gradients(self, x: list, p: list) -> list[tuple[hy.expression, hy.expression]]:
+        """``g_k = 2 e_k / l_k^2`` from the parameters ``p = [L, 1 / l_1^2, ...]``."""
+        return [(q * (2.0 * ex), q * (2.0 * ey)) for (ex, ey), q in zip(self._rod_expressions(x, p[0]), p[1:])]
+
     def constraint_expressions(self, x: list, p: list, fp_type) -> list:
-        """``|e_k|^2 / l_k^2 - 1`` with the pins ``0`` and ``L = p[0]``, ``l_k = p[k]``."""
+        """``|e_k|^2 / l_k^2 - 1`` with the pins ``0`` and ``L = p[0]``, ``1 / l_k^2 = p[k]``."""
         one = hy.expression(fp_type(1.0))
-        return [(ex * ex + ey * ey) / (lk * lk) - one for (ex, ey), lk in zip(self._rod_expressions(x, p[0]), p[1:])]
+        return [(ex * ex + ey * ey) * q - one for (ex, ey), q in zip(self._rod_expressions(x, p[0]), p[1:])]
+
+    def jacobian_expressions(self, x: list, p: list, c: list) -> list[list[hy.expression | None]]:
+        """``G``: row ``k`` is ``g_k = 2 e_k / l_k^2`` on hinge ``k`` and ``-g_k`` on hinge ``k - 1`` (written by
+        hand: heyoka's derivative makes ``2 / l_k^2`` a node of its own, and every product with it a full
+        Taylor product)."""
+        G: list[list[hy.expression | None]] = [[None] * len(x) for _ in c]
+        for k, g in enumerate(self._gradients(x, p)):
+            for j, sign in ((k, 1.0), (k - 1, -1.0)):
+                if 0 <= j < self.chain.n - 1:
+                    G[k][2 * j], G[k][2 * j + 1] = (g[0], g[1]) if sign > 0 else (-g[0], -g[1])
+        return G
+
+    def velocity_term_expressions(self, x: list, v: list, p: list, G: list) -> list:
+        """``(dG/dt) v``: ``2 |e_k'|^2 / l_k^2`` for rod ``k``."""
+        rates = self._rod_expressions(v, hy.expression(0.0))
+        return [q * (2.0 * (dx * dx + dy * dy)) for (dx, dy), q in zip(rates, p[1:])]
 
     def multiplier_pivots(self, x: list, p: list, inverse_metric: list, fp_type) -> list | None:
         """The Thomas pivots of ``M = G K^{-1} G^T`` as sums of non-negative terms (hinge masses; ``None`` with rod
@@ -449,7 +477,7 @@ class ChainSystem(ConstrainedSystem):
         if any(inverse_metric[i][j] is not None for i in range(N) for j in range(N) if i != j):
             return None
         w = {j + 1: inverse_metric[2 * j][2 * j] for j in range(n - 1)}  # hinge j + 1, the end of rod j + 1
-        g = [(2.0 * ex / (lk * lk), 2.0 * ey / (lk * lk)) for (ex, ey), lk in zip(self._rod_expressions(x, p[0]), p[1:])]
+        g = self._gradients(x, p)
         square = [gx * gx + gy * gy for gx, gy in g]
         pivots = [w[1] * square[0]]  # E_1 = 0: the first rod hangs from a pin
         E = None

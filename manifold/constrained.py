@@ -92,7 +92,8 @@ class ConstrainedSystem(ABC):
 
     @property
     def parameters(self) -> NDArray:
-        """Runtime constants of :meth:`constraint_expressions` (float64, taken exact); default none."""
+        """Runtime constants of :meth:`constraint_expressions`, taken exact: float64 values or
+        :class:`fractions.Fraction` s (derived constants, rounded once to the working precision); default none."""
         return np.zeros(0)
 
     @property
@@ -116,7 +117,7 @@ class ConstrainedSystem(ABC):
         """``c(x)``: ``m`` heyoka expressions of the variables ``x`` and the :attr:`parameters` ``p``
         (given as ``heyoka.par`` expressions); other constants made in ``fp_type``."""
 
-    def jacobian_expressions(self, x: list[Expr], c: list[Expr]) -> list[list[Expr | None]]:
+    def jacobian_expressions(self, x: list[Expr], p: list[Expr], c: list[Expr]) -> list[list[Expr | None]]:
         """``G = dc/dx`` as rows of expressions, ``None`` where ``c_k`` does not involve ``x_j``.
 
         Default: heyoka's symbolic derivative; override with a hand-written
@@ -149,7 +150,8 @@ class ConstrainedSystem(ABC):
         """
         return None
 
-    def velocity_term_expressions(self, x: list[Expr], v: list[Expr], G: list[list[Expr | None]]) -> list[Expr]:
+    def velocity_term_expressions(self, x: list[Expr], v: list[Expr], p: list[Expr],
+                                  G: list[list[Expr | None]]) -> list[Expr]:
         """``(dG/dt) v``, i.e. ``v^T (nabla^2 c_k) v`` for each ``k`` (default: differentiate ``G v`` along ``v``)."""
         out = []
         for row in G:
@@ -232,7 +234,7 @@ class ConstrainedLayout:
         """The parameter values in ``fp_type``: ``K^{-1}`` rounded once from its exact rational value."""
         K = np.asarray(system.metric_matrix, dtype=float)
         Ki = _exact_inverse(K)
-        values = [fp_type(alpha)] + [fp_type(float(x)) for x in system.parameters]
+        values = [fp_type(alpha)] + [_fraction_to_fp(Fraction(x), fp_type) for x in system.parameters]
         values += [_fraction_to_fp(Ki[i][j], fp_type) for i, j in self.inverse_pattern]
         values += [fp_type(float(K[i, j])) for i, j in self.metric_pattern]
         return as_fp(np.array(values, dtype=object), fp_type)
@@ -263,9 +265,9 @@ class ConstrainedPieces:
         if len(self.c) != system.n_constraints:
             raise ValueError(f"constraint_expressions gave {len(self.c)} constraints, the system declares "
                              f"{system.n_constraints}")
-        self.G = system.jacobian_expressions(self.x, self.c)
+        self.G = system.jacobian_expressions(self.x, params, self.c)
         self.Gv = [hy.sum([g * vj for g, vj in zip(row, self.v) if g is not None]) for row in self.G]
-        self.curvature = system.velocity_term_expressions(self.x, self.v, self.G)
+        self.curvature = system.velocity_term_expressions(self.x, self.v, params, self.G)
         Kinv, self.K = layout.matrices(N)
         m = len(self.c)
         # W = K^{-1} G^T (N x m) and M = G W (m x m), keeping structural zeros
