@@ -27,18 +27,15 @@ import numpy as np
 from linkage import Chain
 from linkage.motion import free_motion
 
+from .starts import chart_start
+
 EPS = float(np.finfo(float).eps)
 
 
 def _starts(chain: Chain, count: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """``count`` unit-energy starts (complex hinges and hinge velocities) at random chart-0 parameters."""
-    atlas, rng, out = chain.atlas(), np.random.default_rng(0), []
-    for _ in range(count):
-        a = np.append(rng.uniform(-1.2, 1.2, chain.n - 3), rng.uniform(-np.pi, np.pi))
-        h0 = chain.from_point(atlas.get_point(0, a))
-        v0 = chain.from_point(atlas.charts[0].tangent_vector(a, rng.normal(size=chain.n - 2)))
-        out.append((h0, v0 / np.sqrt(2 * chain.kinetic_energy(v0))))
-    return out
+    rng = np.random.default_rng(0)
+    return [chart_start(chain, rng) for _ in range(count)]
 
 
 def unequal_masses(ns: list[int], count: int, T: float = 20.0) -> None:

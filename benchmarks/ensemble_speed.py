@@ -37,20 +37,15 @@ from linkage import Chain
 from linkage.motion import free_motion, free_motions
 from manifold.ensemble import chunk_bounds, default_chunk_size
 
+from .starts import chart_start
+
 REPEATS = 3
 
 
 def starts(chain: Chain, count: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """``count`` unit-speed starts at random chart parameters of chart 0."""
+    """``count`` unit-speed starts at random chart-0 parameters in ``(-1.2, 1.2)``, as arrays ``(count, n - 1)``."""
     rng = np.random.default_rng(seed)
-    atlas = chain.atlas()
-    H, V = [], []
-    for _ in range(count):
-        a = rng.uniform(-1.2, 1.2, chain.n - 2)
-        chart = atlas.charts[0]
-        v = chain.from_point(chart.tangent_vector(a, rng.normal(size=chain.n - 2)))
-        H.append(chain.from_point(chart.get_point(a)))
-        V.append(v / np.sqrt(2 * chain.kinetic_energy(v)))
+    H, V = zip(*[chart_start(chain, rng, longitude=1.2) for _ in range(count)])
     return np.array(H), np.array(V)
 
 

@@ -19,6 +19,8 @@ import numpy as np
 from linkage import Chain
 from linkage.motion import free_motion
 
+from .starts import chart_start
+
 
 def draw(rng: np.random.Generator) -> tuple[Chain, np.ndarray, np.ndarray, float, str, str]:
     """One case: the chain, a unit-speed start (complex hinges and velocities), ``T``, a label and its kind."""
@@ -28,14 +30,11 @@ def draw(rng: np.random.Generator) -> tuple[Chain, np.ndarray, np.ndarray, float
     L = n - 2 + gap if end == "low" else n - gap
     masses = np.ones(n - 1) if rng.random() < 0.5 else 10.0 ** rng.uniform(-2, 2, n - 1)
     chain = Chain(n, L, hinge_masses=masses)
-    atlas = chain.atlas()
-    a = np.append(rng.uniform(-1.4, 1.4, n - 3), rng.uniform(-np.pi, np.pi))
-    h0 = chain.from_point(atlas.get_point(0, a))
-    v0 = chain.from_point(atlas.charts[0].tangent_vector(a, rng.normal(size=n - 2)))
+    h0, v0 = chart_start(chain, rng, latitude=1.4)
     # near L = n the sphere has diameter ~ sqrt(gap): a unit-speed run of T = 2 would circle it 1e6 times
     T = 2.0 if end == "low" else 2.0 * min(1.0, 10 * np.sqrt(gap))
     kind = f"L near {'n - 2' if end == 'low' else 'n'}, {'unit' if np.all(masses == 1) else 'spread'} masses"
-    return chain, h0, v0 / np.sqrt(2 * chain.kinetic_energy(v0)), T, f"n = {n}, L = {L!r}", kind
+    return chain, h0, v0, T, f"n = {n}, L = {L!r}", kind
 
 
 def main() -> None:
