@@ -101,6 +101,15 @@ def test_ensembles_agree_with_single_calls_across_chains(n, data, count, backwar
     a few times the energy error where the hinge equations lose digits
     (``L`` within 1e-2 of ``n``: measured gap / energy error <= 5).  A solve
     that passes its checks alone with a margin of 10 passes them in a batch.
+
+    Near a range end the velocities also carry an error in the near-null
+    normal direction of ``G`` that neither the energy nor the rods see: at
+    n = 3, L = 3 - 1e-5, T = 3 (3,980 steps) both the single solve and its
+    lane were 1.5e-10 off a long-double run (charts: 6e-13) and 2.9e-10 apart,
+    with energy errors of 2e-12.  It grows with the steps and with
+    ``cond(G K^-1 G^T) ~ 1 / (n - L)``, so the bound has a term
+    ``0.1 eps steps / (distance of L to its nearer range end)`` (3.3e-3 at
+    that case).
     """
     L = data.draw(base_lengths(n))
     rng = np.random.default_rng(seed)
@@ -119,7 +128,8 @@ def test_ensembles_agree_with_single_calls_across_chains(n, data, count, backwar
         if not s.relative_energy_error <= 0.1 * energy_bound(s.n_steps, 2.0**-52):
             continue
         assert ens.success[k], ens.messages[k]
-        tol = max(1e-12, 100 * s.relative_energy_error)
+        end_gap = min(L - (n - 2), n - L)
+        tol = max(1e-12, 100 * s.relative_energy_error, 0.1 * 2.0**-52 * s.n_steps / end_gap)
         assert _max_gap(_subset(ens, [k]), [s]) <= tol
 
 
