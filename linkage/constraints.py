@@ -452,7 +452,7 @@ class ChainSystem(ConstrainedSystem):
         return [q * (2.0 * (dx * dx + dy * dy)) for (dx, dy), q in zip(rates, p[1:])]
 
     def multiplier_pivots(self, x: list, p: list, inverse_metric: list, fp_type) -> list | None:
-        """The Thomas pivots of ``M = G K^{-1} G^T`` as sums of non-negative terms (hinge masses; ``None`` with rod
+        r"""The Thomas pivots of ``M = G K^{-1} G^T`` as sums of non-negative terms (hinge masses; ``None`` with rod
         densities, whose ``K^{-1}`` is dense).
 
         Row ``k`` of ``G`` is ``g_k = 2 e_k / l_k^2`` on hinge ``k`` and ``-g_k`` on
