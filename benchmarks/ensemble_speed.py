@@ -130,7 +130,7 @@ def dask_overhead(n: int, count: int, T: float, rounds: int) -> dict:
                 q = np.percentile(ratios, [25, 50, 75]) - 1
                 out[(per_worker, length)] = float(q[1])
                 print(f"  {count} trajectories, T = {length:g}, {chunks} chunks ({per_worker} per worker"
-                      f"{', the default' if size == default else ''}): Dask / threads - 1 over {rounds} pairs: median "
+                      f"{', the default' if per_worker == 1 else ''}): Dask / threads - 1 over {rounds} pairs: median "
                       f"{100 * q[1]:+.0f} % (quartiles {100 * q[0]:+.0f} %, {100 * q[2]:+.0f} %; target < 20 %); "
                       f"results identical: {same}; Dask's round trip for {chunks} trivial tasks {floor * 1e3:.0f} ms")
     return out

@@ -177,7 +177,7 @@ def free_motions(
         SIMD lanes per batch integrator (hinge method in float64 only);
         ``None``: ``heyoka.recommended_simd_size()``; 1: scalar steps.
     chunk_size
-        Trajectories per chunk of work; ``None``: about four chunks per worker.
+        Trajectories per chunk of work; ``None``: four chunks per thread, one per Dask worker thread.
     tangent_tol, project_velocity
         The start checks of :func:`~linkage.motion.free_motion`.
     **kwargs

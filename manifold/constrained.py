@@ -234,7 +234,8 @@ class ConstrainedLayout:
         """The parameter values in ``fp_type``: ``K^{-1}`` rounded once from its exact rational value."""
         K = np.asarray(system.metric_matrix, dtype=float)
         Ki = _exact_inverse(K)
-        values = [fp_type(alpha)] + [_fraction_to_fp(Fraction(x), fp_type) for x in system.parameters]
+        values = [fp_type(alpha)] + [_fraction_to_fp(x if isinstance(x, Fraction) else Fraction(float(x)), fp_type)
+                                     for x in system.parameters]
         values += [_fraction_to_fp(Ki[i][j], fp_type) for i, j in self.inverse_pattern]
         values += [fp_type(float(K[i, j])) for i, j in self.metric_pattern]
         return as_fp(np.array(values, dtype=object), fp_type)

@@ -82,7 +82,7 @@ def solve_constrained_ensemble(
         SIMD lanes per integrator, ``>= 1``; ``None``: ``heyoka.recommended_simd_size()``.
     chunk_size
         Trajectories per chunk of work (rounded up to whole batches);
-        ``None``: about four chunks per worker of the backend.
+        ``None``: :func:`manifold.ensemble.default_chunk_size` (four per thread, one per Dask worker thread).
     backend, client, progress
         Where the chunks run and whether a bar shows it (:func:`manifold.ensemble.run_chunks`).
 
