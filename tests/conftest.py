@@ -11,6 +11,8 @@ import numpy as np
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
+from charts.suspension_symbolic import SuspensionFamily
+
 settings.register_profile(
     "default", deadline=None, max_examples=60, suppress_health_check=[HealthCheck.too_slow]
 )
@@ -101,3 +103,15 @@ def unit_speed_start(chain, a, c):
     h0 = chart.hinges(a)
     v0 = chain.from_point(chart.jacobian(a) @ np.asarray(c, dtype=float))
     return h0, v0 / np.sqrt(2 * chain.kinetic_energy(v0))
+
+
+class DifferentiatedFamily(SuspensionFamily):
+    """A suspension family without jets: its derivatives come from heyoka's symbolic differentiation of the
+    expanded ``z``, the independent route the jets are checked against (any ``SuspensionFamily`` options)."""
+
+    @property
+    def key(self):
+        return ("differentiated", *super().key)
+
+    def point_jets(self, a, c, fp_type):
+        return None

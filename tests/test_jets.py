@@ -9,16 +9,7 @@ from linkage import Chain
 from manifold import compiled
 from manifold.geodesic_system import SymbolicPieces
 
-
-class DifferentiatedFamily(SuspensionFamily):
-    """The suspension family without jets: derivatives by hy.diff_tensors of the expanded z."""
-
-    @property
-    def key(self):
-        return ("suspension-diff", self.n)
-
-    def point_jets(self, a, c, fp_type):
-        return None
+from .conftest import DifferentiatedFamily
 
 
 @pytest.mark.parametrize("n", [3, 4, 6])
@@ -50,7 +41,7 @@ def test_jet_and_symbolic_geodesic_accelerations_agree(n):
 def test_jets_shrink_the_taylor_decomposition():
     """The reason for jets: the forward sweep is several times smaller for deep formulas."""
     sizes = {}
-    for fam in (SuspensionFamily(6), DifferentiatedFamily(6)):
+    for name, fam in (("jets", SuspensionFamily(6)), ("differentiated", DifferentiatedFamily(6))):
         ta = hy.taylor_adaptive(SymbolicPieces(fam, float).equations(), np.zeros(8), compact_mode=True)
-        sizes[fam.key[0]] = len(ta.decomposition)
-    assert sizes["suspension"] * 2 < sizes["suspension-diff"], sizes
+        sizes[name] = len(ta.decomposition)
+    assert sizes["jets"] * 2 < sizes["differentiated"], sizes

@@ -28,7 +28,7 @@ from linkage.motion import free_motion
 from manifold import compiled
 from manifold.backends import NUMPY
 
-from .conftest import HALF_PI, chart_parameters, parameter_rounding_floor, rod_orders
+from .conftest import HALF_PI, DifferentiatedFamily, chart_parameters, parameter_rounding_floor, rod_orders
 
 EPS = np.finfo(float).eps
 EXAMPLE = (1.0, 2.0, 1.5, 2.5, 1.2)  # the tutorial's chain: a sphere S^3 with L dominant for 6.2 < L < 8.2
@@ -219,17 +219,6 @@ def test_jacobian_and_inverse_derivative_match_finite_differences(case):
     assert errs and min(errs) <= 1e-5
 
 
-class DifferentiatedLengthsFamily(SuspensionFamily):
-    """The lengths family without jets: derivatives by heyoka's symbolic differentiation of the expanded z."""
-
-    @property
-    def key(self):
-        return ("suspension-lengths-diff", self.n)
-
-    def point_jets(self, a, c, fp_type):
-        return None
-
-
 #: Two nearly equal shortest links; with L near the lower end of (3.0000001, 3.5000001) the first two links of
 #: some charts can fold back onto each other (q_A).
 NEAR_EQUAL = (0.25, 0.2500001, 1.0, 2.0)
@@ -242,7 +231,7 @@ def test_jets_agree_with_symbolic_differentiation(ls, L):
     rng = np.random.default_rng(1)
     for chart in chain.atlas().charts:
         pars = chart.numerics(chain.ambient_metric, -2.0).pars
-        jet, diff = compiled(SuspensionFamily(4, lengths=True)), compiled(DifferentiatedLengthsFamily(4, lengths=True))
+        jet, diff = compiled(SuspensionFamily(4, lengths=True)), compiled(DifferentiatedFamily(4, lengths=True))
         for _ in range(5):
             x = np.concatenate([[rng.uniform(-1.3, 1.3), rng.uniform(-np.pi, np.pi)], rng.normal(size=2)])
             y = np.concatenate([x, rng.normal(size=6)])
