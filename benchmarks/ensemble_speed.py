@@ -115,7 +115,8 @@ def dask_overhead(n: int, count: int, T: float, rounds: int) -> dict:
             Client(cluster) as client:
         free_motions(chain, H, V, T, backend="dask", client=client)  # every worker compiles (or loads) once
         default = default_chunk_size(count, lanes, "dask", client)
-        for per_worker, size in ((1, default), (4, lanes * -(-count // (4 * cores * lanes)))):
+        # four per worker: the threads backend's default, on as many threads as the cluster has workers
+        for per_worker, size in ((1, default), (4, default_chunk_size(count, lanes, "threads"))):
             chunks = len(chunk_bounds(count, size))
             floor, _, _ = best_of(lambda: client.gather([client.submit(_identity, k, pure=False)
                                                          for k in range(chunks)]), repeats=10)

@@ -127,10 +127,15 @@ def _pivots(chain: Chain, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     ours = cf(x, pars=comp.layout.pack(system, 0.0, float)[: cf.nparams])
     G, W = HingeConstraints(chain).jacobian(x), np.linalg.inv(chain.ambient_metric)
     M = G @ W @ G.T
-    generic = [M[0, 0]]
-    for k in range(1, chain.n):
-        generic.append(M[k, k] - M[k, k - 1] ** 2 / generic[-1])
-    return ours, np.array(generic)
+    return ours, np.array(_thomas_pivots(np.diag(M), np.diag(M, -1)))
+
+
+def _thomas_pivots(diagonal, below) -> list:
+    """``D_0 = M_00``, ``D_k = M_kk - M_{k,k-1}^2 / D_{k-1}`` of a tridiagonal ``M``, in the entries' own arithmetic."""
+    D = [diagonal[0]]
+    for d, b in zip(diagonal[1:], below):
+        D.append(d - b * b / D[-1])
+    return D
 
 
 def _exact_pivots(chain: Chain, x: np.ndarray) -> list[Fraction]:
@@ -141,11 +146,9 @@ def _exact_pivots(chain: Chain, x: np.ndarray) -> list[Fraction]:
     g = [tuple(2 * (b - a) / Fraction(l) ** 2 for a, b in zip(hinges[k], hinges[k + 1]))
          for k, l in enumerate(chain.lengths)]
     w = [Fraction(0)] + [1 / Fraction(m) for m in np.diag(chain.mass_matrix)] + [Fraction(0)]
-    D = [w[1] * (g[0][0] ** 2 + g[0][1] ** 2)]
-    for k in range(1, n):
-        off = -w[k] * (g[k - 1][0] * g[k][0] + g[k - 1][1] * g[k][1])
-        D.append((w[k] + w[k + 1]) * (g[k][0] ** 2 + g[k][1] ** 2) - off * off / D[-1])
-    return D
+    diagonal = [(w[k] + w[k + 1]) * (g[k][0] ** 2 + g[k][1] ** 2) for k in range(n)]
+    below = [-w[k] * (g[k - 1][0] * g[k][0] + g[k - 1][1] * g[k][1]) for k in range(1, n)]
+    return _thomas_pivots(diagonal, below)
 
 
 @given(bend=st.floats(1e-9, 1e-2), turn=st.floats(0.1, 0.5))
