@@ -198,6 +198,11 @@ def test_rods_hold_with_masses_spread_over_five_decades(n, seed, densities, desc
     """Hinge masses spread over 1e-3..1e2: the rods once drifted by 1.5e-12 over T = 20 (unit masses: 1e-15),
     because the Baumgarte rate followed the heavy hinges' speed; it now follows the fastest hinge.
 
+    What is left are spikes where a light hinge whips through straight (joint angle ~1e-3, speed 3..27,
+    rod tensions ~3e5): the float64 state cannot be tangent to better than ``eps |v|``, and the tensions
+    act on that.  Over 400 starts of this strategy the largest closure residual was 9.3e-14, each at
+    such a whip; the bound leaves 2x over that and still catches the old drift 7x over.
+
     A run whose energy leaves the solver's bound says so; it is never a success with more.
     """
     masses = np.geomspace(1e-3, 1e2, n - 1)
@@ -208,7 +213,7 @@ def test_rods_hold_with_masses_spread_over_five_decades(n, seed, densities, desc
                          throw=False)
     assert motion.success or motion.solution.status is SolveStatus.ENERGY_CHECK_FAILED, motion.solution.message
     residuals = motion.closure_residuals
-    assert np.max(residuals[np.isfinite(residuals)], initial=0.0) <= 5e-14  # a failed run records a partial grid
+    assert np.max(residuals[np.isfinite(residuals)], initial=0.0) <= 2e-13  # a failed run records a partial grid
 
 
 @pytest.mark.parametrize("stabilisation", ["baumgarte", "projection"])
