@@ -430,10 +430,19 @@ class ChainSystem(ConstrainedSystem):
         """``g_k = 2 e_k / l_k^2`` from the parameters ``p = [L, 1 / l_1^2, ...]``."""
         return [(q * (2.0 * ex), q * (2.0 * ey)) for (ex, ey), q in zip(self._rod_expressions(x, p[0]), p[1:])]
 
+    def _squared_lengths(self, x: list, L: hy.expression) -> list[hy.expression]:
+        """``|e_k|^2``, built the same way wherever used, so that heyoka computes each once."""
+        return [ex * ex + ey * ey for ex, ey in self._rod_expressions(x, L)]
+
     def constraint_expressions(self, x: list, p: list, fp_type) -> list:
         """``|e_k|^2 / l_k^2 - 1`` with the pins ``0`` and ``L = p[0]``, ``1 / l_k^2 = p[k]``."""
         one = hy.expression(fp_type(1.0))
-        return [(ex * ex + ey * ey) * q - one for (ex, ey), q in zip(self._rod_expressions(x, p[0]), p[1:])]
+        return [s * q - one for s, q in zip(self._squared_lengths(x, p[0]), p[1:])]
+
+    def constraint_rate_expressions(self, x: list, v: list, p: list, G: list) -> list:
+        """``G v = 2 e_k . e_k' / l_k^2``: two products per rod where the rows of ``G`` take four."""
+        rods, rates = self._rod_expressions(x, p[0]), self._rod_expressions(v, hy.expression(0.0))
+        return [q * (2.0 * (ex * dx + ey * dy)) for (ex, ey), (dx, dy), q in zip(rods, rates, p[1:])]
 
     def jacobian_expressions(self, x: list, p: list, c: list) -> list[list[hy.expression | None]]:
         """``G``: row ``k`` is ``g_k = 2 e_k / l_k^2`` on hinge ``k`` and ``-g_k`` on hinge ``k - 1`` (written by
@@ -481,7 +490,8 @@ class ChainSystem(ConstrainedSystem):
             return None
         w = {j + 1: inverse_metric[2 * j][2 * j] for j in range(n - 1)}  # hinge j + 1, the end of rod j + 1
         g = self._gradients(x, p)
-        square = [gx * gx + gy * gy for gx, gy in g]
+        # |g_k|^2 = 4 |e_k|^2 / l_k^4 from the constraints' |e_k|^2: products with parameters, no squares of g
+        square = [q * (q * (4.0 * s)) for s, q in zip(self._squared_lengths(x, p[0]), p[1:])]
         pivots = [w[1] * square[0]]  # E_1 = 0: the first rod hangs from a pin
         E = None
         for k in range(1, n):

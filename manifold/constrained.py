@@ -150,12 +150,17 @@ class ConstrainedSystem(ABC):
         """
         return None
 
+    def constraint_rate_expressions(self, x: list[Expr], v: list[Expr], p: list[Expr],
+                                    G: list[list[Expr | None]]) -> list[Expr]:
+        """``G v``, the rates ``dc_k/dt`` (default: the products of ``G``'s rows with ``v``; override with a
+        shorter form, each product of two variables being a full Taylor recursion)."""
+        return [hy.sum([g * vj for g, vj in zip(row, v) if g is not None]) for row in G]
+
     def velocity_term_expressions(self, x: list[Expr], v: list[Expr], p: list[Expr],
                                   G: list[list[Expr | None]]) -> list[Expr]:
         """``(dG/dt) v``, i.e. ``v^T (nabla^2 c_k) v`` for each ``k`` (default: differentiate ``G v`` along ``v``)."""
         out = []
-        for row in G:
-            Gv = hy.sum([g * vj for g, vj in zip(row, v) if g is not None])
+        for Gv in self.constraint_rate_expressions(x, v, p, G):
             used = set(hy.get_variables(Gv))
             out.append(hy.sum([hy.diff(Gv, xi) * vi for xi, vi in zip(x, v) if str(xi) in used]))
         return out
@@ -267,7 +272,7 @@ class ConstrainedPieces:
             raise ValueError(f"constraint_expressions gave {len(self.c)} constraints, the system declares "
                              f"{system.n_constraints}")
         self.G = system.jacobian_expressions(self.x, params, self.c)
-        self.Gv = [hy.sum([g * vj for g, vj in zip(row, self.v) if g is not None]) for row in self.G]
+        self.Gv = system.constraint_rate_expressions(self.x, self.v, params, self.G)
         self.curvature = system.velocity_term_expressions(self.x, self.v, params, self.G)
         Kinv, self.K = layout.matrices(N)
         m = len(self.c)
