@@ -30,8 +30,8 @@ either way the literature does:
   ``v`` K-orthogonally onto ``ker G``, in the working precision;
 * ``"none"`` -- for studies of the drift.
 
-A system provides its constraints (and, optionally, hand-written ``G`` and
-``\\dot G v``) as heyoka expressions; everything else is generic.
+A system provides its constraints (and, optionally, hand-written ``G``, ``G v``,
+``\\dot G v`` and multiplier pivots) as heyoka expressions; everything else is generic.
 """
 
 from __future__ import annotations
