@@ -2,7 +2,7 @@
 
 ``python -m benchmarks.baumgarte_rate [--seeds 6]`` prints, for each rate and
 each family of starts, the median and largest relative energy error (a run
-refused by its own energy check counts as ``inf``) and the mean step count:
+that did not succeed counts as ``inf``) and the mean step count:
 
 * generic bases ``L = n - 0.5`` (n = 3, 4, 6), T = 3;
 * the top of the range, ``L = n - 1e-3 .. n - 1e-6`` (n = 3, 4, 6), T = 3:

@@ -440,7 +440,7 @@ class ChainSystem(ConstrainedSystem):
         return [s * q - one for s, q in zip(self._squared_lengths(x, p[0]), p[1:])]
 
     def constraint_rate_expressions(self, x: list, v: list, p: list, G: list) -> list:
-        """``G v = 2 e_k . e_k' / l_k^2``: two products per rod where the rows of ``G`` take four."""
+        """``G v = 2 e_k . e_k' / l_k^2``: two products per rod where the rows of ``G`` take four (two at the pins)."""
         rods, rates = self._rod_expressions(x, p[0]), self._rod_expressions(v, hy.expression(0.0))
         return [q * (2.0 * (ex * dx + ey * dy)) for (ex, ey), (dx, dy), q in zip(rods, rates, p[1:])]
 

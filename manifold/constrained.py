@@ -152,8 +152,21 @@ class ConstrainedSystem(ABC):
 
     def constraint_rate_expressions(self, x: list[Expr], v: list[Expr], p: list[Expr],
                                     G: list[list[Expr | None]]) -> list[Expr]:
-        """``G v``, the rates ``dc_k/dt`` (default: the products of ``G``'s rows with ``v``; override with a
-        shorter form, each product of two variables being a full Taylor recursion)."""
+        """``G v``, the rates ``dc_k/dt`` of the constraints.
+
+        Default: the products of ``G``'s rows with ``v``.  Override with a
+        shorter form (each product of two variables is a full Taylor
+        recursion); it must equal ``G(x) v`` identically in ``x`` and ``v``,
+        not only on ``c = 0``, because the default :meth:`velocity_term_expressions`
+        and the phase-space Jacobian differentiate it.
+
+        Parameters
+        ----------
+        x, v, p
+            The variables, velocities and :attr:`parameters` (``heyoka.par``).
+        G
+            The rows of :meth:`jacobian_expressions`.
+        """
         return [hy.sum([g * vj for g, vj in zip(row, v) if g is not None]) for row in G]
 
     def velocity_term_expressions(self, x: list[Expr], v: list[Expr], p: list[Expr],

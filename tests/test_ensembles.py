@@ -102,15 +102,16 @@ def test_ensembles_agree_with_single_calls_across_chains(n, data, count, backwar
     (``L`` within 1e-2 of ``n``: measured gap / energy error <= 5).  A solve
     that passes its checks alone with a margin of 10 passes them in a batch.
 
-    Near the top of the range the velocities also differ by a phase lag: at
-    n = 3, L = 3 - 1e-5, T = 3 both the single solve and its lane were
-    1.5e-10 off a long-double run (charts: 6e-13) and 2.9e-10 apart, with
-    energy errors of 2e-12.  Those make the speeds differ by 1e-12, and the
-    orbit turns at ~300 rad per unit time (``~1 / sqrt(n - L)``): shifted in
-    time by 1e-12, the velocities agree to 1e-12.  The lag grows with the steps
-    and the turning rate, so the bound has an envelope term
-    ``0.1 eps steps / (distance of L to its nearer range end)`` (3.3e-3 at
-    that case).
+    Near the top of the range the velocities also collect a tangential
+    error that the energy bounds only in part: at n = 3, L = 3 - 1e-5, T = 3
+    both the single solve and its lane were 1.5e-10 off a long-double run
+    (charts: 6e-13) and 2.9e-10 apart, with energy errors of 2e-12.  At
+    n = 3 it is a phase lag (a time shift, the integral of the energy error,
+    along an orbit that turns at ~300 rad per unit time); from n = 5 on part
+    of it lies across the orbit (docs/methods.md).  It grows with the steps
+    and the turning rate ``~1 / sqrt(n - L)``, so the bound has an envelope
+    term ``0.1 eps steps / (distance of L to its nearer range end)`` (~1e-8
+    at that case).
     """
     L = data.draw(base_lengths(n))
     rng = np.random.default_rng(seed)

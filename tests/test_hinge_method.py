@@ -216,24 +216,28 @@ def test_rods_hold_with_masses_spread_over_five_decades(n, seed, densities, desc
     assert np.max(residuals[np.isfinite(residuals)], initial=0.0) <= 2e-13  # a failed run records a partial grid
 
 
-def test_near_the_top_the_velocity_error_is_the_phase_lag_of_the_energy_error():
+def test_near_the_top_the_velocity_error_of_three_rods_is_the_phase_lag_of_the_energy_error():
     """``L = 3 - 1e-5``: the orbit turns at ~300 rad per unit time and the rods carry tensions ~3.5e4 E, so
-    the hinge velocities end ~1e-10..1e-9 off the chart method's (accurate to 1e-12 there).  That error is a
-    time shift ``dt`` along the orbit, bounded by the energy error (the speed is off by ``dE / 2E``, so
-    ``|dt| <= T max|dE / E| / 2``); shifted back, the velocities agree to the charts' own accuracy."""
+    the float64 hinge velocities end 1e-10..2e-9 off the chart method's (accurate to 1e-12 there).  For three
+    rods, whose configuration space is a curve, that error is a time shift ``dt`` along the orbit, and the
+    shift is the integral of the energy error, ``dt = integral (E/E0 - 1) dt`` (measured within 6 % on four
+    starts at n = 3 and 4; the speed alone, ``dE / 2E``, accounts for half, the orbit's size, which the rods'
+    length residuals change with the energy, presumably for the rest).  Shifted back, the velocities agree
+    to the charts' accuracy.  From n = 5 on part of the error lies across the orbit (docs/methods.md)."""
     chain = Chain(3, 3 - 1e-5)
     h0, v0 = _start(chain, 0)
     T, d = 3.0, 1e-6
-    hinges = free_motion(chain, h0, v0, T, method="hinges", t_eval=np.linspace(0, T, 31))
+    ts = np.linspace(0, T, 301)
+    hinges = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts)
     charts = free_motion(chain, h0, v0, T + d, method="charts", t_eval=[0.0, T - d, T, T + d])
     v_h = chain.to_point(hinges.velocities[-1])
     v_c = np.array([chain.to_point(v) for v in charts.velocities[1:]])
     acceleration = (v_c[2] - v_c[0]) / (2 * d)
     error = v_h - v_c[1]
     dt = error @ acceleration / (acceleration @ acceleration)
-    energy_errors = np.abs(hinges.energies / hinges.energies[0] - 1)
-    assert abs(dt) <= 2 * T * np.max(energy_errors) + 1e-13
-    assert np.max(np.abs(error - dt * acceleration)) <= 1e-11
+    lag = np.trapezoid(hinges.energies / hinges.energies[0] - 1, ts)
+    assert abs(dt - lag) <= 0.2 * abs(lag) + 1e-13
+    assert np.max(np.abs(error - dt * acceleration)) <= 3e-12
 
 
 @pytest.mark.parametrize("stabilisation", ["baumgarte", "projection"])
