@@ -266,14 +266,21 @@ def _up_dn(base: Base, alpha: Any, theta: Any, inner_slack: Any, d: Any, ops: An
     """``(1 + s, 1 - s)``, ``s = sin(phi) = theta / alpha``, both to full relative accuracy.
 
     The larger one is ``1 + |theta| / alpha``.  The smaller one tends to 0 at a
-    pole, where ``theta / alpha`` cancels against 1; it is taken instead from
-    the inner chain's slack ``R_{m-1} - d`` (measured link by link) through
-    ``R_{m-1}^2 - d^2 = 4 D l_m sin(alpha up/2) sin(alpha dn/2)``.
+    pole, where ``theta / alpha`` cancels against 1; in the polar half
+    (``|s| > 1/2``) it is taken instead from the inner chain's slack
+    ``R_{m-1} - d`` (measured link by link) through
+    ``R_{m-1}^2 - d^2 = 4 D l_m sin(alpha up/2) sin(alpha dn/2)``.  Numerical
+    trap: that ``asin`` is ill-conditioned where its argument nears 1, as it
+    does at the equator when ``alpha`` nears ``pi`` (the lower end of the
+    range: a chain 2e-7 from it lost 2.4e-12 of ``1 - s`` at ``s = 0``), so
+    the equatorial half keeps ``1 - |s|``, which cancels at most 2x there.
     """
-    large = 1 + ops.ratio_or_zero(ops.abs(theta), alpha)
+    ratio = ops.ratio_or_zero(ops.abs(theta), alpha)
+    large = 1 + ratio
     X = inner_slack * (base.rods.R[base.m - 1] + d)
-    small = 2 * ops.ratio_or_zero(
+    polar = 2 * ops.ratio_or_zero(
         ops.asin_clipped(X / (_times(4 * base.D, base.last) * ops.sin(alpha * large / 2))), alpha)
+    small = ops.where(ops.gt(ratio, 0.5), polar, 1 - ratio)
     north = ops.ge(theta, 0)
     return ops.where(north, large, small), ops.where(north, small, large)
 

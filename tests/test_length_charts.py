@@ -16,7 +16,7 @@ from fractions import Fraction
 import mpmath
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from charts import SuspensionAtlas, SuspensionChart
@@ -125,9 +125,14 @@ def test_every_link_keeps_its_length(case):
 
 
 def reference_hinges(a, L, ls, digits: bool = False):
-    """The chart by the plain recursion in 60 digits: ``alpha = acos(...)``, ``y = sqrt(l_1^2 - x^2)``;
-    complex128, or the 60-digit values with ``digits``."""
-    with mpmath.workdps(60):
+    """The chart by the plain recursion: ``alpha = acos(...)``, ``y = sqrt(l_1^2 - x^2)``; complex128, or the
+    multi-digit values with ``digits``.
+
+    Numerical trap: at a pole ``acos`` near 1 takes a square root of its argument's rounding, so nested
+    poles halve the digits level by level (n = 7 with poles at three levels: 60 digits left the first
+    hinge 2.7e-8 off).  The working precision doubles per level: ``20 * 2^len(a)`` digits.
+    """
+    with mpmath.workdps(20 * 2 ** len(a)):
         ls = [mpmath.mpf(float(x)) for x in ls]
         D, frame, outer, n = mpmath.mpf(float(L)), mpmath.mpc(1), [], len(ls)
         for k, phi in enumerate(a[:-1]):
@@ -148,9 +153,11 @@ def reference_hinges(a, L, ls, digits: bool = False):
 
 
 @given(cases(3, 7))
+@example(((np.array([1, 1, 1, 0.5, 2, 1, 2.0]), 8.0), np.array([-HALF_PI, 0, -HALF_PI, HALF_PI - 0.1, -1]),
+          np.arange(7)))  # poles at three levels: CI's draw that 60 reference digits could not resolve
 @settings(max_examples=40)
 def test_the_chart_is_the_plain_recursion_to_rounding(case):
-    """Against 60 digits of the textbook formulas: the carried slacks keep full accuracy where ``acos``
+    """Against the textbook formulas in many digits: the carried slacks keep full accuracy where ``acos``
     in float64 would not (near both ends of the L range, near poles).  Near a fold of the first two links
     (two nearly equal shortest links, ``|p_2|`` small) the map itself amplifies the rounding of its inputs
     by ``R / |p_2|`` (the elbow direction ``p_2 / |p_2|``): measured ``<= 0.55 eps R (1 + R / |p_2|)``."""
@@ -179,6 +186,8 @@ def test_inverse_round_trip_where_the_chart_is_good(case):
 
 
 @given(cases())
+@example(((np.array([1.5, 1.078125, 2.8475746663123274, 1, 1, 1]), 6.4256998663123275), np.array([0, 0, -HALF_PI, 0]),
+          np.arange(6)))  # 2e-7 above the lower end: the inverse's polar asin lost 1.2e-12 of the equator's latitudes
 def test_point_round_trip_everywhere_including_poles(case):
     """``get_point(get_parameters(p)) = p`` on the singular set too (backward stability)."""
     (ls, L), a, order = case
