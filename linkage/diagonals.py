@@ -81,7 +81,9 @@ def fan_rotation(a: NDArray, l: NDArray, c: NDArray, u: NDArray, v: NDArray, w: 
     norm = g2 + h2
     free = norm == 0
     norm = np.where(free, 1.0, norm)
-    return np.where(free, 1.0 + 0j, ((g2 - h2) + 2j * np.sqrt(g2 * h2)) / norm)
+    # sqrt(g2) sqrt(h2), not sqrt(g2 h2), and real divisions, not a complex one: with a diagonal of 1e-323 the
+    # product underflowed to 0 and numpy's complex division by the subnormal norm overflowed (NaN hinges)
+    return np.where(free, 1.0 + 0j, (g2 - h2) / norm + 2j * (np.sqrt(g2) * np.sqrt(h2) / norm))
 
 
 # -- validation ---------------------------------------------------------------------
