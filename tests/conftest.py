@@ -13,8 +13,12 @@ from hypothesis import strategies as st
 
 from charts.suspension_symbolic import SuspensionFamily
 
+# The strategies lean on purpose toward poles and range ends, where many draws are filtered (``assume``
+# of a chart's quality, of a generic topology): hypothesis's filter_too_much check then fails a run by the
+# seed's luck (seed 25 filtered 50 draws of 58 in one test), which says nothing about the code.
 settings.register_profile(
-    "default", deadline=None, max_examples=60, suppress_health_check=[HealthCheck.too_slow]
+    "default", deadline=None, max_examples=60,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
 )
 # ``pytest --hypothesis-profile=stress`` draws ten times as many cases; run it
 # after touching a chart or the solver (the default run is sized for CI).
