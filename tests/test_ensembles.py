@@ -112,6 +112,13 @@ def test_ensembles_agree_with_single_calls_across_chains(n, data, count, backwar
     and the turning rate ``~1 / sqrt(n - L)``, so the bound has an envelope
     term ``0.1 eps steps / (distance of L to its nearer range end)`` (~1e-8
     at that case).
+
+    And some trajectories there are chaotic: at n = 4, L = 3.9999 (seed 60) a
+    change of 1e-14 in the start grows to 1e-7 by T = 3 in long double, and
+    float64 charts, float64 hinges and long-double charts all end 1e-6 off a
+    long-double hinge run, lane and single solve 1.5e-6 apart.  So the bound
+    also allows 10 times what the single solve itself does with its start
+    speed changed by 4 eps: the problem's own amplification of a rounding.
     """
     L = data.draw(base_lengths(n))
     rng = np.random.default_rng(seed)
@@ -121,6 +128,7 @@ def test_ensembles_agree_with_single_calls_across_chains(n, data, count, backwar
     T = -3.0 if backward else 3.0
     ts = np.linspace(0, T, 4)
     singles = _singles(chain, H, V, T, ts, method="hinges", **FAST)
+    nudged = _singles(chain, H, V * (1 + 4 * 2.0**-52), T, ts, method="hinges", **FAST)
     ens = free_motions(chain, H, V, T, t_eval=ts, backend="threads", **FAST)
     for k, s in enumerate(singles):
         # the batch checks fewer states (the grid and the end), rounded differently: near the bound either may
@@ -131,7 +139,8 @@ def test_ensembles_agree_with_single_calls_across_chains(n, data, count, backwar
             continue
         assert ens.success[k], ens.messages[k]
         end_gap = min(L - (n - 2), n - L)
-        tol = max(1e-12, 100 * s.relative_energy_error, 0.1 * 2.0**-52 * s.n_steps / end_gap)
+        sensitivity = max(np.abs(nudged[k].hinges - s.hinges).max(), np.abs(nudged[k].velocities - s.velocities).max())
+        tol = max(1e-12, 100 * s.relative_energy_error, 0.1 * 2.0**-52 * s.n_steps / end_gap, 10 * sensitivity)
         assert _max_gap(_subset(ens, [k]), [s]) <= tol
 
 
