@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from hypothesis import assume, given
+from hypothesis import assume, example, given
 from hypothesis import strategies as st
 
 from benchmarks.baselines.seed_metric4 import metric4
@@ -142,12 +142,16 @@ def test_metric_norm_and_inner_are_consistent():
 
 
 @given(chains.flatmap(lambda nL: st.tuples(st.just(nL), chart_parameters(nL[0]), rod_orders(nL[0]))))
+@example(((8, 6.5), np.array([-np.pi / 2, 0, -np.pi / 2, 0, -np.pi / 2, 0]), np.arange(8)))  # a tie, 1 ulp apart
 def test_best_chart_returns_the_best_index_and_its_parameters(case):
+    """The best chart's quality is the largest, to rounding: symmetric points tie (charts 6 and 7 of this
+    example agree to 1.1e-16, and the separately computed qualities may order them either way)."""
     (n, L), a, order = case
     atlas = SuspensionAtlas(n, L)
     p = _random_point(n, L, a, order)
     i, ai = atlas.best_chart(p)
-    assert i == int(np.argmax([c.quality(c.get_parameters(p)) for c in atlas.charts]))
+    qualities = [c.quality(c.get_parameters(p)) for c in atlas.charts]
+    assert qualities[i] >= max(qualities) - 1e-12
     a_full = atlas.charts[i].get_parameters(p)  # equal up to the polish (best_chart inverts all charts in one batch)
     tol = 1e-12 * folded_conditioning(n, L)
     assert np.abs(atlas.get_point(i, ai) - p).max() <= tol and np.abs(atlas.get_point(i, a_full) - p).max() <= tol
