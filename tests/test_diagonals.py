@@ -95,8 +95,12 @@ def closure_error(ls, L, hinges):
 
 
 # -- the map --------------------------------------------------------------------------
+#: A diagonal of 1e-323: the fan rotation's ``g2 h2`` underflowed and the complex division overflowed (NaN hinges).
+SUBNORMAL_DIAGONAL = (np.ones(6), 0.001000001, np.array([1e-323, 1.0, 0.0, 1.0]), -np.ones(5, dtype=int))
+
+
 @given(configurations())
-@example((np.ones(6), 0.001000001, np.array([1e-323, 1.0, 0.0, 1.0]), -np.ones(5, dtype=int)))  # g2 h2 underflowed
+@example(SUBNORMAL_DIAGONAL)
 def test_closure_to_1e13_also_within_1e12_of_a_wall(conf):
     ls, L, x, flips = conf
     h = from_diagonals(ls, L, x, flips)
@@ -105,7 +109,7 @@ def test_closure_to_1e13_also_within_1e12_of_a_wall(conf):
 
 
 @given(configurations())
-@example((np.ones(6), 0.001000001, np.array([1e-323, 1.0, 0.0, 1.0]), -np.ones(5, dtype=int)))  # g2 h2 underflowed
+@example(SUBNORMAL_DIAGONAL)
 def test_configuration_against_50_digit_reference(conf):
     """The angles near a wall: ``acos`` of the law of cosines would be off by ``1e-8`` here."""
     mp = pytest.importorskip("mpmath")
@@ -124,7 +128,7 @@ def test_configuration_against_50_digit_reference(conf):
 
 
 @given(configurations())
-@example((np.ones(6), 0.001000001, np.array([1e-323, 1.0, 0.0, 1.0]), -np.ones(5, dtype=int)))  # g2 h2 underflowed
+@example(SUBNORMAL_DIAGONAL)
 def test_round_trip_x_exactly_and_flips_where_the_triangle_is_not_flat(conf):
     ls, L, x, flips = conf
     x2, f2 = diagonals(ls, L, from_diagonals(ls, L, x, flips))
