@@ -31,7 +31,7 @@ either way the literature does:
 * ``"none"`` -- for studies of the drift.
 
 A system provides its constraints (and, optionally, hand-written ``G``, ``G v``,
-``\\dot G v`` and multiplier pivots) as heyoka expressions; everything else is generic.
+``\\dot G v``, the Baumgarte term and multiplier pivots) as heyoka expressions; everything else is generic.
 """
 
 from __future__ import annotations
@@ -179,6 +179,45 @@ class ConstrainedSystem(ABC):
         return out
 
 
+    def transpose_product_expressions(self, x: list[Expr], p: list[Expr], G: list[list[Expr | None]],
+                                      lam: list[Expr]) -> list[Expr | None]:
+        """``G^T lambda``, the constraint forces of multipliers ``lambda`` (``None`` where no row of ``G`` acts).
+
+        Default: a product per nonzero of ``G``.  Override where rows share
+        entries up to sign (heyoka computes ``(-g) lambda`` apart from ``g lambda``).
+
+        Parameters
+        ----------
+        x, p
+            The variables and :attr:`parameters` (``heyoka.par``).
+        G
+            The rows of :meth:`jacobian_expressions`.
+        lam
+            The multipliers, one per constraint.
+        """
+        return [_sum_or_none([row[j] * lk for row, lk in zip(G, lam) if row[j] is not None]) for j in range(len(x))]
+
+    def baumgarte_term_expressions(self, x: list[Expr], v: list[Expr], p: list[Expr], c: list[Expr],
+                                   G: list[list[Expr | None]], alpha: Expr) -> list[Expr]:
+        """``(dG/dt) v + 2 alpha G v + alpha^2 c``: minus the right-hand side ``r`` of ``G x'' = r`` under
+        Baumgarte's ``c'' + 2 alpha c' + alpha^2 c = 0``.
+
+        Default: from :meth:`velocity_term_expressions`, :meth:`constraint_rate_expressions` and ``c``.
+        Override with a shorter form that equals it identically in ``x``, ``v`` and ``alpha``.
+
+        Parameters
+        ----------
+        x, v, p
+            The variables, velocities and :attr:`parameters` (``heyoka.par``).
+        c, G
+            The constraints and the rows of :meth:`jacobian_expressions`.
+        alpha
+            The Baumgarte rate, a ``heyoka.par``.
+        """
+        return [q + alpha * (2.0 * gv + alpha * ck) for q, gv, ck in
+                zip(self.velocity_term_expressions(x, v, p, G), self.constraint_rate_expressions(x, v, p, G), c)]
+
+
 def _exact_inverse(K: NDArray) -> list[list[Fraction]]:
     """``K^{-1}`` in exact rationals (Gauss-Jordan on the float64 entries taken exact), cached per ``K``."""
     return _exact_inverse_of(K.shape[0], tuple(float(k) for k in K.ravel()))
@@ -268,6 +307,8 @@ class ConstrainedPieces:
         Position and velocity variables ``x0..``, ``v0..``.
     c, G, Gv
         Constraints, sparse Jacobian rows and ``G v``.
+    curvature, damped
+        ``(dG/dt) v`` and the Baumgarte-damped ``(dG/dt) v + 2 alpha G v + alpha^2 c`` (``alpha = par[0]``).
     W, M
         ``K^{-1} G^T`` and the multiplier matrix ``G K^{-1} G^T`` (lower triangle), ``None`` for structural zeros.
     pivots
@@ -287,7 +328,9 @@ class ConstrainedPieces:
         self.G = system.jacobian_expressions(self.x, params, self.c)
         self.Gv = system.constraint_rate_expressions(self.x, self.v, params, self.G)
         self.curvature = system.velocity_term_expressions(self.x, self.v, params, self.G)
+        self.damped = system.baumgarte_term_expressions(self.x, self.v, params, self.c, self.G, hy.par[0])
         Kinv, self.K = layout.matrices(N)
+        self._system, self._params, self._Kinv = system, params, Kinv
         m = len(self.c)
         # W = K^{-1} G^T (N x m) and M = G W (m x m), keeping structural zeros
         self.W = [[_sum_or_none([kij * gkj for kij, gkj in zip(Kinv[i], self.G[k])
@@ -301,20 +344,17 @@ class ConstrainedPieces:
             raise ValueError(f"multiplier_pivots gave {len(self.pivots)} pivots, the system declares {m} constraints")
 
     def correction(self, r: list[Expr]) -> list[Expr]:
-        """``K^{-1} G^T M^{-1} r``: the K-smallest ``d`` with ``G d = r``."""
-        lam = ldl_solve(self.M, r, self.pivots)
-        return [_sum_or_none([w * lk for w, lk in zip(row, lam) if w is not None]) or hy.expression(self.fp(0))
-                for row in self.W]
+        """``K^{-1} G^T M^{-1} r``: the K-smallest ``d`` with ``G d = r`` (``G^T lambda`` first: products with the
+        parameters ``K^{-1}`` cost O(order), products with ``W = K^{-1} G^T`` the O(order^2) of two variables)."""
+        force = self._system.transpose_product_expressions(self.x, self._params, self.G,
+                                                          ldl_solve(self.M, r, self.pivots))
+        return [_sum_or_none([kij * fj for kij, fj in zip(row, force) if kij is not None and fj is not None])
+                or hy.expression(self.fp(0)) for row in self._Kinv]
 
     def equations(self, stabilised: bool) -> list[tuple[Expr, Expr]]:
         """``x' = v``, ``v' = K^{-1} G^T M^{-1} r`` with ``r = -(dG/dt) v`` (minus ``2 alpha G v + alpha^2 c``
         if ``stabilised``; ``alpha = par[0]``)."""
-        if stabilised:
-            alpha = hy.par[0]
-            r = [-(q + alpha * (2.0 * gv + alpha * ck)) for q, gv, ck in zip(self.curvature, self.Gv, self.c)]
-        else:
-            r = [-q for q in self.curvature]
-        acc = self.correction(r)
+        acc = self.correction([-q for q in (self.damped if stabilised else self.curvature)])
         return list(zip(self.x, self.v)) + list(zip(self.v, acc))
 
     def energy(self) -> Expr:

@@ -19,7 +19,7 @@ from linkage import Chain
 from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.motion import free_motion
 from manifold import SolveStatus
-from manifold.constrained import compiled_constrained, solve_constrained
+from manifold.constrained import ConstrainedSystem, compiled_constrained, solve_constrained
 from manifold.expression_linalg import ldl_solve
 from manifold.precision import MultiPrecision, as_fp
 
@@ -88,6 +88,33 @@ def test_symbolic_equations_agree_with_the_numpy_multiplier_solve(n, seed, densi
     rhs = hy.cfunc([e for _, e in P.equations(False)][len(x):], P.x + P.v)
     acc = rhs(np.concatenate([x, v]), pars=pars[: rhs.nparams])
     assert np.allclose(acc, ref.acceleration(x, v), rtol=1e-10, atol=1e-11)
+
+
+@given(n=st.integers(3, 8), seed=st.integers(0, 10**6), densities=st.booleans())
+@settings(max_examples=10, deadline=None)
+def test_the_chains_short_forms_equal_the_generic_ones_off_the_constraints(n, seed, densities):
+    """The chain writes the Baumgarte term ``(dG/dt) v + 2 alpha G v + alpha^2 c`` and the forces ``G^T lambda``
+    by hand, in fewer products; they must equal the generic forms identically, so here at points off ``c = 0``
+    with velocities off the tangent space, any ``alpha`` and any multipliers (the integrator's states are
+    never exactly on the constraints)."""
+    rng = np.random.default_rng(seed)
+    chain = Chain(n, rng.uniform(n - 2 + 1e-3, n - 1e-3), hinge_masses=rng.uniform(0.1, 10, n - 1),
+                  rod_densities=rng.uniform(0, 3, n) if densities else 0.0)
+    system = ChainSystem(chain)
+    comp = compiled_constrained(system)
+    P = comp.pieces(float)
+    params = [hy.par[1 + i] for i in range(comp.layout.n_parameters)]
+    lam = [hy.expression(f"lam{k}") for k in range(n)]
+    ours = P.damped + system.transpose_product_expressions(P.x, params, P.G, lam)
+    generic = (ConstrainedSystem.baumgarte_term_expressions(system, P.x, P.v, params, P.c, P.G, hy.par[0])
+               + ConstrainedSystem.transpose_product_expressions(system, P.x, params, P.G, lam))
+    cf = hy.cfunc(ours + generic, P.x + P.v + lam)
+    x = chain.to_point(_start(chain, seed)[0]) + rng.normal(scale=0.1, size=2 * (n - 1))
+    inputs = np.concatenate([x, rng.normal(size=2 * (n - 1)), rng.normal(size=n)])
+    pars = comp.layout.pack(system, rng.uniform(0.1, 10), float)[: cf.nparams]
+    out = cf(inputs, pars=pars)
+    half = len(out) // 2
+    assert np.allclose(out[:half], out[half:], rtol=1e-12, atol=1e-12 * np.abs(out).max())
 
 
 @pytest.mark.parametrize("n, pole, masses", [(3, False, False), (4, True, False), (5, False, True), (6, True, True),
