@@ -178,7 +178,6 @@ class ConstrainedSystem(ABC):
             out.append(hy.sum([hy.diff(Gv, xi) * vi for xi, vi in zip(x, v) if str(xi) in used]))
         return out
 
-
     def transpose_product_expressions(self, x: list[Expr], p: list[Expr], G: list[list[Expr | None]],
                                       lam: list[Expr]) -> list[Expr | None]:
         """``G^T lambda``, the constraint forces of multipliers ``lambda`` (``None`` where no row of ``G`` acts).
