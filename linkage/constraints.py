@@ -458,7 +458,8 @@ class ChainSystem(ConstrainedSystem):
 
     def transpose_product_expressions(self, x: list, p: list, G: list, lam: list) -> list:
         """``G^T lambda``: hinge ``j`` feels ``lambda_j g_j - lambda_{j+1} g_{j+1}`` (its rods, 1-based), each
-        ``lambda_k g_k`` computed once, two products per rod where the entries ``+-g_k`` of ``G`` take four."""
+        ``lambda_k g_k`` computed once from the rods (not from ``G``): two products per rod where the entries
+        ``+-g_k`` of ``G`` take four (two at the pins)."""
         pulls = [(lk * gx, lk * gy) for lk, (gx, gy) in zip(lam, self._gradients(x, p))]
         return [c for (ax, ay), (bx, by) in zip(pulls[:-1], pulls[1:]) for c in (ax - bx, ay - by)]
 
@@ -477,7 +478,7 @@ class ChainSystem(ConstrainedSystem):
 
         where the square ``|e_k'|^2`` and the product ``e_k . e_k'`` take three.  Numerical trap: not
         ``2 |e_k' + alpha e_k|^2 / l_k^2 - alpha^2 (c_k + 2)``, one square per rod: it cancels
-        ``alpha^2 |e_k|^2 / l_k^2`` absolutely, a rounding noise of ``eps alpha^2`` that doubled the energy error
+        ``2 alpha^2 |e_k|^2 / l_k^2`` against ``alpha^2 (c_k + 2)``, a rounding noise of ``eps alpha^2`` that doubled the energy error
         near the top of the range and made rate 10 no better than rate 1 there.
         """
         rods, rates = self._rod_expressions(x, p[0]), self._rod_expressions(v, hy.expression(0.0))

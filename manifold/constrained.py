@@ -31,7 +31,7 @@ either way the literature does:
 * ``"none"`` -- for studies of the drift.
 
 A system provides its constraints (and, optionally, hand-written ``G``, ``G v``,
-``\\dot G v``, the Baumgarte term and multiplier pivots) as heyoka expressions; everything else is generic.
+``\\dot G v``, the Baumgarte term, the forces ``G^T lambda`` and multiplier pivots) as heyoka expressions; everything else is generic.
 """
 
 from __future__ import annotations
