@@ -6,13 +6,16 @@
    T = 100 in float64 at n = 4 and 8: steps in ``t``, and in ``tau`` with the right-hand side multiplied
    by ``det M`` (the product of the multiplier pivots) and the time as one more variable, stopped by an
    event at ``t = T``;
-2. the same in real128 at n = 4 over T = 20: steps and CPU time of each, in alternating runs;
-3. the chart equations (:class:`manifold.geodesic_system.SymbolicPieces`) of the start's best chart, up
-   to its first switch event: steps in ``t`` and in ``tau`` with ``det M`` of the chart's hinges.
+2. the same in real128 at n = 4 over T = 20: steps and CPU time of each, three rounds (plain first in each);
+3. the chart equations (:class:`manifold.geodesic_system.SymbolicPieces`) of the best chart of each of
+   three starts, up to its first switch event (threshold ``q_out = 0.05``, so that a chart is kept long):
+   steps in ``t`` and in ``tau`` with ``det M`` of the chart's hinges.
 
-The step of a Taylor method is set by the nearest singularity of the solution in complex time.  If the
-steps fall with ``tau``, those singularities lie where ``M = G K^-1 G^T`` is singular.  A study for
-``docs/methods.md``: the library does not integrate in ``tau``.
+Each line also prints how far apart the two end states are (both runs at heyoka's default tolerance).
+The step of a Taylor method is limited by the nearest singularity of the solution in complex time;
+multiplying by ``det M`` removes those where ``M = G K^-1 G^T`` is singular, so falling step counts
+suggest that these are the limiting ones.  A study for ``docs/methods.md``: the library does not
+integrate in ``tau``.
 """
 
 from __future__ import annotations
@@ -93,7 +96,7 @@ def hinge_steps(ns: tuple[int, ...] = (4, 8), T: float = 100.0) -> dict:
 
 
 def hinge_real128(T: float = 20.0, rounds: int = 3) -> list:
-    """Section 2: real128 steps and CPU time, alternating runs."""
+    """Section 2: real128 steps and CPU time, ``rounds`` rounds of a plain and a Sundman run; the CPU ratios."""
     plain, sundman, y0 = _hinge_integrators(4, T, hy.real128)
     rows = []
     for _ in range(rounds):
@@ -129,7 +132,7 @@ def chart_steps(seeds: tuple[int, ...] = (0, 1, 2), q_out: float = 0.05) -> list
         pars = Layout.of(family).pack([chain.L], np.eye(n - 1), q_out, float)
         plain = hy.taylor_adaptive(equations, np.concatenate([a0, c0]), compact_mode=True, t_events=pieces.events())
         plain.pars[:] = pars[: len(plain.pars)]
-        steps_t = plain.propagate_until(100.0)[3]
+        steps_t = plain.propagate_until(100.0)[3]  # q_out = 0.05 switches well before t = 100 from these starts
         sundman = hy.taylor_adaptive(tau_equations, np.concatenate([a0, c0, [0.0]]), compact_mode=True,
                                      t_events=pieces.events() + [hy.t_event(t - plain.time)])
         sundman.pars[:] = pars[: len(sundman.pars)]
