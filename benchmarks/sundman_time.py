@@ -35,13 +35,6 @@ from manifold.precision import as_fp
 from .study.experiments import generic_start
 
 
-def _product(factors: list) -> hy.expression:
-    out = factors[0]
-    for f in factors[1:]:
-        out = out * f
-    return out
-
-
 def _in_tau(equations: list, factor: hy.expression) -> tuple[list, hy.expression]:
     """``dy/dtau = factor * dy/dt`` and ``dt/dtau = factor``: the system in Sundman's time, and the time variable."""
     t = hy.expression("sundman_t")
@@ -61,7 +54,7 @@ def _hinge_integrators(n: int, T: float, fp_type) -> tuple:
     pars = layout.pack(system, alpha, fp_type)
     y0 = np.concatenate([x0, w0])
     plain = hy.taylor_adaptive(equations, as_fp(y0, fp_type), compact_mode=True, fp_type=fp_type)
-    tau_equations, t = _in_tau(equations, _product(pieces.pivots))
+    tau_equations, t = _in_tau(equations, hy.prod(pieces.pivots))
     sundman = hy.taylor_adaptive(tau_equations, as_fp(np.append(y0, 0.0), fp_type), compact_mode=True,
                                  fp_type=fp_type, t_events=[hy.t_event(t - fp_type(T), fp_type=fp_type)])
     for ta in (plain, sundman):

@@ -430,6 +430,10 @@ class ChainSystem(ConstrainedSystem):
         """``g_k = 2 e_k / l_k^2`` from the parameters ``p = [L, 1 / l_1^2, ...]``."""
         return [(q * (2.0 * ex), q * (2.0 * ey)) for (ex, ey), q in zip(self._rod_expressions(x, p[0]), p[1:])]
 
+    def _rod_rates(self, v: list) -> list[tuple[hy.expression, hy.expression]]:
+        """The rods' rates ``e_k'`` from the hinge velocities ``v``: the pins do not move."""
+        return self._rod_expressions(v, hy.expression(0.0))
+
     def _squared_lengths(self, x: list, L: hy.expression) -> list[hy.expression]:
         """``|e_k|^2``, built the same way wherever used, so that heyoka computes each once."""
         return [ex * ex + ey * ey for ex, ey in self._rod_expressions(x, L)]
@@ -441,7 +445,7 @@ class ChainSystem(ConstrainedSystem):
 
     def constraint_rate_expressions(self, x: list, v: list, p: list, G: list) -> list:
         """``G v = 2 e_k . e_k' / l_k^2``: two products per rod where the rows of ``G`` take four (two at the pins)."""
-        rods, rates = self._rod_expressions(x, p[0]), self._rod_expressions(v, hy.expression(0.0))
+        rods, rates = self._rod_expressions(x, p[0]), self._rod_rates(v)
         return [q * (2.0 * (ex * dx + ey * dy)) for (ex, ey), (dx, dy), q in zip(rods, rates, p[1:])]
 
     def jacobian_expressions(self, x: list, p: list, c: list) -> list[list[hy.expression | None]]:
@@ -465,10 +469,11 @@ class ChainSystem(ConstrainedSystem):
 
     def velocity_term_expressions(self, x: list, v: list, p: list, G: list) -> list:
         """``(dG/dt) v``: ``2 |e_k'|^2 / l_k^2`` for rod ``k``."""
-        rates = self._rod_expressions(v, hy.expression(0.0))
+        rates = self._rod_rates(v)
         return [q * (2.0 * (dx * dx + dy * dy)) for (dx, dy), q in zip(rates, p[1:])]
 
-    def baumgarte_term_expressions(self, x: list, v: list, p: list, c: list, G: list, alpha) -> list:
+    def baumgarte_term_expressions(self, x: list, v: list, p: list, c: list, Gv: list, curvature: list,
+                                   alpha) -> list:
         r"""``(dG/dt) v + 2 alpha G v + alpha^2 c`` with two products per rod,
 
         .. math::
@@ -481,7 +486,7 @@ class ChainSystem(ConstrainedSystem):
         ``2 alpha^2 |e_k|^2 / l_k^2`` against ``alpha^2 (c_k + 2)``, a rounding noise of ``eps alpha^2`` that doubled the energy error
         near the top of the range and made rate 10 no better than rate 1 there.
         """
-        rods, rates = self._rod_expressions(x, p[0]), self._rod_expressions(v, hy.expression(0.0))
+        rods, rates = self._rod_expressions(x, p[0]), self._rod_rates(v)
         return [q * (2.0 * (dx * (dx + alpha * (2.0 * ex)) + dy * (dy + alpha * (2.0 * ey)))) + alpha * (alpha * ck)
                 for (ex, ey), (dx, dy), q, ck in zip(rods, rates, p[1:], c)]
 

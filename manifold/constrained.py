@@ -197,24 +197,24 @@ class ConstrainedSystem(ABC):
         return [_sum_or_none([row[j] * lk for row, lk in zip(G, lam) if row[j] is not None]) for j in range(len(x))]
 
     def baumgarte_term_expressions(self, x: list[Expr], v: list[Expr], p: list[Expr], c: list[Expr],
-                                   G: list[list[Expr | None]], alpha: Expr) -> list[Expr]:
+                                   Gv: list[Expr], curvature: list[Expr], alpha: Expr) -> list[Expr]:
         """``(dG/dt) v + 2 alpha G v + alpha^2 c``: minus the right-hand side ``r`` of ``G x'' = r`` under
         Baumgarte's ``c'' + 2 alpha c' + alpha^2 c = 0``.
 
-        Default: from :meth:`velocity_term_expressions`, :meth:`constraint_rate_expressions` and ``c``.
-        Override with a shorter form that equals it identically in ``x``, ``v`` and ``alpha``.
+        Default: the three terms combined as given.  Override with a shorter form that equals it identically
+        in ``x``, ``v`` and ``alpha``.
 
         Parameters
         ----------
         x, v, p
             The variables, velocities and :attr:`parameters` (``heyoka.par``).
-        c, G
-            The constraints and the rows of :meth:`jacobian_expressions`.
+        c, Gv, curvature
+            The constraints, :meth:`constraint_rate_expressions` and :meth:`velocity_term_expressions`, as
+            already built (the default velocity term is a symbolic derivative: not worth building twice).
         alpha
             The Baumgarte rate, a ``heyoka.par``.
         """
-        return [q + alpha * (2.0 * gv + alpha * ck) for q, gv, ck in
-                zip(self.velocity_term_expressions(x, v, p, G), self.constraint_rate_expressions(x, v, p, G), c)]
+        return [q + alpha * (2.0 * gv + alpha * ck) for q, gv, ck in zip(curvature, Gv, c)]
 
 
 def _exact_inverse(K: NDArray) -> list[list[Fraction]]:
@@ -308,8 +308,8 @@ class ConstrainedPieces:
         Constraints, sparse Jacobian rows and ``G v``.
     curvature, damped
         ``(dG/dt) v`` and the Baumgarte-damped ``(dG/dt) v + 2 alpha G v + alpha^2 c`` (``alpha = par[0]``).
-    W, M
-        ``K^{-1} G^T`` and the multiplier matrix ``G K^{-1} G^T`` (lower triangle), ``None`` for structural zeros.
+    M
+        The multiplier matrix ``G K^{-1} G^T`` (lower triangle), ``None`` for structural zeros.
     pivots
         The system's :meth:`ConstrainedSystem.multiplier_pivots` of ``M``, or ``None``.
     """
@@ -327,15 +327,16 @@ class ConstrainedPieces:
         self.G = system.jacobian_expressions(self.x, params, self.c)
         self.Gv = system.constraint_rate_expressions(self.x, self.v, params, self.G)
         self.curvature = system.velocity_term_expressions(self.x, self.v, params, self.G)
-        self.damped = system.baumgarte_term_expressions(self.x, self.v, params, self.c, self.G, hy.par[0])
+        self.damped = system.baumgarte_term_expressions(self.x, self.v, params, self.c, self.Gv, self.curvature,
+                                                        hy.par[0])
         Kinv, self.K = layout.matrices(N)
         self._system, self._params, self._Kinv = system, params, Kinv
         m = len(self.c)
         # W = K^{-1} G^T (N x m) and M = G W (m x m), keeping structural zeros
-        self.W = [[_sum_or_none([kij * gkj for kij, gkj in zip(Kinv[i], self.G[k])
+        W = [[_sum_or_none([kij * gkj for kij, gkj in zip(Kinv[i], self.G[k])
                                  if kij is not None and gkj is not None]) for k in range(m)]
                   for i in range(N)]
-        self.M = [[_sum_or_none([gki * wil for gki, wil in zip(self.G[k], [row[l] for row in self.W])
+        self.M = [[_sum_or_none([gki * wil for gki, wil in zip(self.G[k], [row[l] for row in W])
                                  if gki is not None and wil is not None]) if l <= k else None
                    for l in range(m)] for k in range(m)]
         self.pivots = system.multiplier_pivots(self.x, params, Kinv, fp_type)

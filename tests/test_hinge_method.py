@@ -116,7 +116,8 @@ def test_the_chains_short_forms_equal_the_generic_ones_off_the_constraints(n, se
     params = [hy.par[1 + i] for i in range(comp.layout.n_parameters)]
     lam = [hy.expression(f"lam{k}") for k in range(n)]
     ours = P.damped + system.transpose_product_expressions(P.x, params, P.G, lam)
-    generic = (ConstrainedSystem.baumgarte_term_expressions(system, P.x, P.v, params, P.c, P.G, hy.par[0])
+    generic = (ConstrainedSystem.baumgarte_term_expressions(system, P.x, P.v, params, P.c, P.Gv, P.curvature,
+                                                             hy.par[0])
                + ConstrainedSystem.transpose_product_expressions(system, P.x, params, P.G, lam))
     cf = hy.cfunc(ours + generic, P.x + P.v + lam)
     x = chain.to_point(_start(chain, seed)[0]) + rng.normal(scale=0.1, size=2 * (n - 1))
