@@ -193,7 +193,7 @@ class HeyokaOps:
         return self.hy.asin(self._clip1(x))
 
     def sinc(self, x):
-        """``sin(x)/x = cos(x/2) S(x^2/4)``, ``S(y) = sum_k (-1)^k y^k / (2k+1)!`` in Horner form.
+        """``sin(x)/x = cos(x/2) S(x^2/4)``, ``S(y) = sum_k (-1)^k y^k / (2k+1)!`` (:meth:`polynomial`).
 
         The plain quotient is 0/0 at ``x = 0``: its Taylor coefficients lose all
         accuracy there and heyoka's step size collapses.  The even polynomial has
@@ -204,11 +204,19 @@ class HeyokaOps:
         return self.cos(h) * self.polynomial(self.sinc_coefficients, h * h)
 
     def polynomial(self, coeffs, y):
-        """``sum_k coeffs[k] y^k`` in Horner form; ``coeffs`` are numbers of ``fp_type``."""
-        acc = self.hy.expression(coeffs[-1])
-        for c in reversed(coeffs[:-1]):
-            acc = self.hy.expression(c) + y * acc
-        return acc
+        """``sum_k coeffs[k] y^k`` as a sum of scaled powers ``y^(2j) = (y^j)^2``, ``y^(2j+1) = y^(2j) y``.
+
+        In a Taylor step a product of two series costs ``O(order^2)`` and a product with a
+        constant ``O(order)``: Horner's rule pays a product of series per term, the powers
+        one per term with half of them squares, and :class:`~manifold.jets.JetOps` takes
+        ``p``, ``p'`` and ``p''`` from the same powers.  For the ``sinc`` series (``0 <= y <= pi^2/4``,
+        alternating terms summing to at least ``2/pi``) neither form loses more than a few roundings.
+        """
+        hy = self.hy
+        powers = [None, y]
+        for j in range(2, len(coeffs)):
+            powers.append(powers[j // 2] * powers[j // 2] if j % 2 == 0 else powers[j - 1] * y)
+        return hy.sum([hy.expression(coeffs[0])] + [hy.expression(c) * powers[k] for k, c in enumerate(coeffs) if k > 0])
 
     def ratio_or_zero(self, a, b):
         """``a / b``, and 0 where ``b == 0`` (a collapsed sub-sphere: any value is valid)."""

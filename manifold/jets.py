@@ -147,11 +147,12 @@ class JetOps:
         return Jet(self.base.atan2(y.v, x.v), grad, d1, d2)
 
     def polynomial(self, coeffs: Any, y: Any) -> Any:
-        """``p(y) = sum_k coeffs[k] y^k`` from three Horner sweeps on the value: ``p``, ``p'``, ``p''``.
+        """``p(y) = sum_k coeffs[k] y^k`` from three polynomials on the value: ``p``, ``p'``, ``p''``.
 
-        Horner's rule run on jets would multiply jets at every term (``2k + 6``
+        A polynomial run on jets would multiply jets at every term (``2k + 6``
         products of series for ``k`` parameters, each costing heyoka ``O(order)``
-        per Taylor order); the chain rule needs one product per term and sweep.
+        per Taylor order); the chain rule needs the base backend's three
+        polynomials, which on heyoka share the powers of ``y``.
         """
         if not isinstance(y, Jet):
             return self.base.polynomial(coeffs, y)
