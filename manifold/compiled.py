@@ -30,7 +30,7 @@ from .artefacts import ArtefactStore
 from .chart import gauss_newton
 from .family import ChartFamily
 from .geodesic_system import Layout, SymbolicPieces
-from .precision import as_fp, heyoka_fp_kwargs, is_double, unit_roundoff
+from .precision import as_fp, event_fp_kwargs, heyoka_fp_kwargs, is_double, unit_roundoff
 
 
 #: Taylor tolerance used when none is given, per floating type (``benchmarks/taylor_options.py``): in float64,
@@ -148,26 +148,33 @@ class CompiledFamily(ArtefactStore):
 
     @contextmanager
     def integrator(self, fp_type: Any = float, tol: float | None = None, form: str = "embedded",
-                   backward: bool = False, compact_mode: bool = True, opt_level: int = DEFAULT_OPT_LEVEL) -> Iterator[Any]:
+                   backward: bool = False, compact_mode: bool = True, opt_level: int = DEFAULT_OPT_LEVEL,
+                   factor: Any = None) -> Iterator[Any]:
         """Lend a Taylor integrator of the geodesics with switch events; return it after use.
 
         The caller owns it inside the ``with`` block: set ``state``, ``time``
-        and ``pars`` (``Layout.pack(...)[:len(ta.pars)]``) before each use.
+        and ``pars`` (:attr:`ChartNumerics.pars`, ``[:len(ta.pars)]``) before each use.
         ``tol=None`` is :func:`default_tolerance` (1e-14 in float64, the
         machine epsilon of other types).  ``backward=True`` mirrors the event
         directions for negative times.  ``compact_mode`` and ``opt_level``
         (LLVM's optimisation level, 0..3) are heyoka's compile options; each
-        combination is a separate integrator.
+        combination is a separate integrator.  With a ``factor``
+        (:class:`manifold.sundman.TimeFactor`) the equations are those of
+        :meth:`~manifold.geodesic_system.SymbolicPieces.sundman_equations`, with one more
+        terminal event, last: the segment's time ``u`` reaching 1.
         """
         tol = default_tolerance(fp_type) if tol is None else tol
-        key = ("integrator", fp_type, tol, form, backward, compact_mode, opt_level)
+        key = ("integrator", fp_type, tol, form, backward, compact_mode, opt_level, None if factor is None else factor.key)
 
         def build() -> Any:
             P = self.pieces(fp_type)
             kw = {} if tol is None else {"tol": fp_type(tol)}
-            return hy.taylor_adaptive(P.equations(form), as_fp(np.zeros(2 * P.k), fp_type), compact_mode=compact_mode,
-                                      opt_level=opt_level, t_events=P.events(backward), **kw,
-                                      **heyoka_fp_kwargs(fp_type))
+            equations, events = P.equations(form), P.events(backward)
+            if factor is not None:
+                equations = P.sundman_equations(factor, form)
+                events = events + [hy.t_event(equations[-1][0] - 1.0, **event_fp_kwargs(fp_type))]
+            return hy.taylor_adaptive(equations, as_fp(np.zeros(len(equations)), fp_type), compact_mode=compact_mode,
+                                      opt_level=opt_level, t_events=events, **kw, **heyoka_fp_kwargs(fp_type))
 
         with self._lend(key, build) as ta:
             yield ta
@@ -262,7 +269,7 @@ class ChartNumerics:
     Attributes
     ----------
     pars
-        The runtime parameters ``(theta, B, q_out)`` in ``fp_type``.
+        The runtime parameters ``(theta, B, q_out, M, m)`` in ``fp_type`` (:class:`~manifold.geodesic_system.Layout`).
     """
 
     def __init__(self, chart: Any, K: NDArray, q_out: float, fp_type: Any) -> None:
@@ -271,7 +278,9 @@ class ChartNumerics:
         self.M = as_fp(chart.linear_map, fp_type)
         self.M_inv = as_fp(chart.inverse_linear_map(), fp_type)
         self.m = chart.offset(fp_type)
-        self.pars = self.compiled.layout.pack(chart.family_parameters, chart.core_metric(K), q_out, fp_type)
+        # theta, B, q_out, then the chart's map M and offset m (read only in Sundman's time, manifold.sundman)
+        self.pars = np.concatenate([self.compiled.layout.pack(chart.family_parameters, chart.core_metric(K), q_out, fp_type),
+                                    self.M.ravel(), self.m])
         for x in (self.M, self.M_inv, self.m, self.pars):  # shared by every solve on the chart (SymbolicChart.numerics)
             x.flags.writeable = False
         self._cf = self.compiled.transfer(fp_type)

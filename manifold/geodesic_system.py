@@ -31,6 +31,8 @@ from .family import ChartFamily
 from .precision import as_fp, event_fp_kwargs
 
 FORMS = ("embedded", "christoffel")
+#: Name of the segment-time variable ``u`` of :meth:`SymbolicPieces.sundman_equations`.
+SUNDMAN_TIME = "sundman_u"
 
 
 @dataclass(frozen=True)
@@ -39,11 +41,12 @@ class Layout:
 
     n_theta: int
     n_points: int  # M = point_dim / block: size of B
+    block: int = 1
 
     @classmethod
     def of(cls, family: ChartFamily) -> "Layout":
         """The layout for ``family``: ``family.n_params`` values of ``theta``, ``B`` of size ``point_dim / block``."""
-        return cls(family.n_params, family.point_dim // family.block)
+        return cls(family.n_params, family.point_dim // family.block, family.block)
 
     @property
     def n_metric(self) -> int:
@@ -54,6 +57,19 @@ class Layout:
     def q_out_index(self) -> int:
         """Index of ``q_out`` in ``pars``: right after ``theta`` and the upper triangle of ``B``."""
         return self.n_theta + self.n_metric
+
+    @property
+    def map_index(self) -> int:
+        """Start of the chart's linear map ``M`` (``N x N``, row-major) in ``pars``, then its offset ``m``
+        (``N``): the ambient point is ``p = M z + m``.  Only Sundman's time reads them (:mod:`manifold.sundman`)."""
+        return self.q_out_index + 1
+
+    @property
+    def span_index(self) -> int:
+        """Index of ``1 / (t_final - t_start)`` of a segment in Sundman's time, after ``M`` and ``m``;
+        the time factor's own parameters follow it."""
+        N = self.n_points * self.block
+        return self.map_index + N * N + N
 
     def metric_pars(self) -> list[list[hy.expression]]:
         """Symmetric matrix of parameter expressions for ``B``."""
@@ -172,6 +188,22 @@ class SymbolicPieces:
         """The first-order system ``[(a_i, c_i), ..., (c_i, acc_i), ...]``."""
         acc = self.acceleration(form)
         return list(zip(self.a, self.c)) + list(zip(self.c, acc))
+
+    def sundman_equations(self, factor: Any, form: str = "embedded") -> list[tuple]:
+        r"""The geodesic equations in Sundman's time: ``dy/dtau = s(p) dy/dt`` and ``du/dtau = s(p) / (t_final - t_start)``.
+
+        ``s`` is ``factor.expression`` (a :class:`manifold.sundman.TimeFactor`) of the ambient point
+        ``p = M z(a) + m`` (the chart's map, from ``pars``, so that one compiled system serves every chart),
+        with the factor's parameters after :attr:`Layout.span_index`.  ``u = (t - t_start) / (t_final - t_start)``
+        is the segment's time, in ``[0, 1]`` so that it does not widen heyoka's error norm (which is relative to
+        the state's largest component); the variable is the last of the state.
+        """
+        lay, N = self.layout, self.N
+        M = [[hy.par[lay.map_index + r * N + s] for s in range(N)] for r in range(N)]
+        p = [hy.sum([M[r][s] * self.z[s] for s in range(N)] + [hy.par[lay.map_index + N * N + r]]) for r in range(N)]
+        s = factor.expression(p, [hy.par[lay.span_index + 1 + j] for j in range(factor.n_params)])
+        u = hy.expression(SUNDMAN_TIME)
+        return [(lhs, s * rhs) for lhs, rhs in self.equations(form)] + [(u, s * hy.par[lay.span_index])]
 
     def events(self, backward: bool = False) -> list:
         """Terminal events: ``quality_m(a) - q_out`` (decreasing), then ``a_p -+ pi`` for periodic ``a_p``.

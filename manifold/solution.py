@@ -138,8 +138,11 @@ class TaylorDense:
     def __call__(self, ts: NDArray) -> NDArray:
         s = np.searchsorted(self._starts, np.asarray(ts, dtype=float) * self._sign, side="right") - 1
         s = np.clip(s, 0, len(self._starts) - 1)
-        h = as_fp(ts, self.fp_type) - self.times[s]
-        coeffs = self.tcs[s]  # (m, 2k, order+1)
+        return self.at(s, as_fp(ts, self.fp_type) - self.times[s])
+
+    def at(self, steps: NDArray, h: NDArray) -> NDArray:
+        """States ``(m, 2k)`` at offsets ``h`` from the starts of the steps ``steps`` (both ``(m,)``)."""
+        coeffs = self.tcs[steps]  # (m, 2k, order+1)
         out = coeffs[:, :, -1]
         for j in range(coeffs.shape[2] - 2, -1, -1):
             out = out * h[:, None] + coeffs[:, :, j]

@@ -20,8 +20,10 @@ from linkage import Chain
 from linkage.ambient import integrate_ambient
 from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
+from linkage.time_factor import ChainTimeFactor
 from manifold import GeodesicIntegrationError, ScipyStepper, compiled, solve_chart_exp_ode
 from manifold.constrained import compiled_constrained
+from manifold.sundman import SundmanStepper
 
 from ..baselines.rattle import integrate_rattle
 from ..baselines.seed_geodesics import integrate_seed_rk4
@@ -57,7 +59,7 @@ def from_solution(
     return Run(name, knob, wall, ts, h, chain.kinetic_energy(v), failed, sol.n_steps)
 
 
-def _warm_up(chain: Chain, tol=None, scipy: bool = False) -> None:
+def _warm_up(chain: Chain, tol=None, scipy: bool = False, factor=None) -> None:
     """Compile (or fetch from the caches) what a method needs, outside its timing."""
     family = compiled(chain.atlas().charts[0].family)
     family.transfer(float)
@@ -65,7 +67,7 @@ def _warm_up(chain: Chain, tol=None, scipy: bool = False) -> None:
         family.acceleration(float)
         family.quality(float)
     else:
-        with family.integrator(float, tol):
+        with family.integrator(float, tol, factor=factor):
             pass
 
 
@@ -74,6 +76,15 @@ def atlas_taylor(chain: Chain, p0, v0, T, ts, tol) -> Run:
     _warm_up(chain, tol)
     sol, wall = _timed(lambda: solve_chart_exp_ode(chain.metric(), p0, v0, T, tol=tol))
     return from_solution("atlas Taylor (ours)", tol, chain, sol, wall, ts)
+
+
+def atlas_sundman(chain: Chain, p0, v0, T, ts, tol) -> Run:
+    """Method 1 in Sundman's time ``dt = det M dtau`` (:class:`manifold.sundman.SundmanStepper`), the chart path's default."""
+    factor = ChainTimeFactor(chain)
+    _warm_up(chain, tol, factor=factor)
+    stepper = SundmanStepper(factor, tol=tol)
+    sol, wall = _timed(lambda: solve_chart_exp_ode(chain.metric(), p0, v0, T, stepper=stepper))
+    return from_solution("atlas Taylor, Sundman time (ours)", tol, chain, sol, wall, ts)
 
 
 def single_chart_taylor(chain: Chain, p0, v0, T, ts, tol, chart: int = 0) -> Run:

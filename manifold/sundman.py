@@ -1,0 +1,230 @@
+"""Sundman's time for the chart path: integrate in ``tau`` with ``dt = s(p) dtau``.
+
+A Taylor step is limited by the nearest singularity of the solution in complex
+time.  For a submanifold given by constraints ``c(p) = 0`` with a constant
+ambient metric ``K``, the motion is singular where ``M = G K^-1 G^T`` is (``G``
+the constraints' Jacobian), and these are the singularities that limit the
+chart path's steps (``benchmarks/sundman_time.py``).  With ``s = det M`` (or any
+positive multiple), the system
+
+    dy/dtau = s(p) f(y),        dt/dtau = s(p)
+
+has the same orbits with those singularities moved away, and takes fewer steps;
+``s`` must be that of the real motion's ``K``: a factor for the wrong metric
+gains little.  The factor is a :class:`TimeFactor` of the ambient point
+``p = M z(a) + m`` (each chart's own map, passed as runtime parameters), so
+nothing here knows what the constraints are.
+
+:class:`SundmanStepper` plugs into the atlas loop like any stepper: each
+segment runs in ``tau`` from 0 until the segment's time
+``u = (t - t_start) / (t_final - t_start)`` reaches 1 (an event) or a switch event
+fires, and reports physical times.  Its dense output (:class:`SundmanDense`)
+finds ``tau`` for a requested ``t`` by Newton's method on the step's polynomial
+``u(tau)``, which is increasing (``du/dtau = s / (t_final - t_start)``).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Hashable, Iterator, Sequence
+from contextlib import contextmanager
+from types import SimpleNamespace
+from typing import Any
+
+import heyoka as hy
+import numpy as np
+from numpy.typing import NDArray
+
+from .compiled import CompiledFamily
+from .precision import as_fp, unit_roundoff
+from .progress import step_callback
+from .solution import TaylorDense
+from .steppers import Advance, TaylorStepper
+
+#: Bound on ``|tau|`` of one segment; the segment ends by its ``u = 1`` event long before (``tau`` is about
+#: ``t / s``, and ``s`` stays positive on the manifold).
+TAU_LIMIT = 1e30
+#: Newton iterations allowed for ``tau(t)`` in a step (from the chord's guess, 3-6 are used).
+NEWTON_ITERATIONS = 30
+#: Steps after which the segment's time ``u`` restarts at 0 (:func:`sundman_advance`).
+RESTART_STEPS = 16
+
+
+class TimeFactor(ABC):
+    """A positive function ``s(p; kappa)`` of the ambient point whose complex zeros are the motion's singularities.
+
+    Attributes
+    ----------
+    n_params
+        Number of its parameters ``kappa``.
+    """
+
+    n_params: int
+
+    @property
+    @abstractmethod
+    def key(self) -> Hashable:
+        """Identity of the expression (compiled code is cached per chart family and key)."""
+
+    @abstractmethod
+    def expression(self, p: Sequence[hy.expression], pars: Sequence[hy.expression]) -> hy.expression:
+        """``s`` at the ambient point ``p`` (expressions) with parameters ``pars`` (``n_params`` expressions)."""
+
+    @abstractmethod
+    def parameters(self) -> NDArray:
+        """The values of ``kappa`` (float64, ``n_params``)."""
+
+
+class SundmanDense:
+    """Dense output of a segment integrated in Sundman's time, evaluated at physical times.
+
+    Parameters
+    ----------
+    tau_dense
+        The Taylor polynomials in ``tau`` of the state ``(y, u)`` (:class:`~manifold.solution.TaylorDense`).
+    origins, spans
+        Per step, ``t = origin + span u`` (the run restarts ``u`` at 0 every few steps, :func:`sundman_advance`).
+    u_ends
+        Per step, ``u`` at its end.
+    """
+
+    def __init__(self, tau_dense: TaylorDense, origins: NDArray, spans: NDArray, u_ends: NDArray) -> None:
+        self.tau_dense, self.origins, self.spans, self.u_ends = tau_dense, origins, spans, u_ends
+        self._t_ends = (origins + spans * u_ends).astype(float)
+        self._sign = 1.0 if float(spans[0]) > 0 else -1.0
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held: the polynomials and the steps' time maps."""
+        return self.tau_dense.nbytes + int(self.origins.nbytes + self.spans.nbytes + self.u_ends.nbytes)
+
+    def __call__(self, ts: NDArray) -> NDArray:
+        fp = self.tau_dense.fp_type
+        ts = as_fp(ts, fp)
+        s = np.searchsorted(self._t_ends[:-1] * self._sign, ts.astype(float) * self._sign, side="left")
+        target = (ts - self.origins[s]) / self.spans[s]
+        times, coeffs = self.tau_dense.times, self.tau_dense.tcs[s, -1, :]  # u(tau) of each point's step
+        width, u_start = times[s + 1] - times[s], coeffs[:, 0]
+        h = width * (target - u_start) / (self.u_ends[s] - u_start)  # the chord's guess
+        slope = coeffs[:, 1:] * np.arange(1, coeffs.shape[1])
+        eps = 8 * unit_roundoff(fp)
+        for _ in range(NEWTON_ITERATIONS):
+            rate = _horner(slope, h)  # du/dtau: of the sign of tau's direction, never 0
+            step = (_horner(coeffs, h) - target) / rate
+            h = h - step
+            # converged to what u's own rounding (eps |u| <= eps, u in [0, 1]) leaves of tau: eps / |rate|
+            if np.all(np.abs(step.astype(float)) <= eps * np.abs((width + 1 / rate).astype(float))):
+                break
+        else:
+            raise ArithmeticError(f"Sundman time: tau(t) did not converge in {NEWTON_ITERATIONS} Newton steps "
+                                  f"(largest step {np.max(np.abs(step.astype(float))):.3g})")
+        return self.tau_dense.at(s, h)[:, :-1]
+
+
+def _horner(coeffs: NDArray, h: NDArray) -> NDArray:
+    """``sum_j coeffs[:, j] h^j`` row by row."""
+    out = coeffs[:, -1]
+    for j in range(coeffs.shape[1] - 2, -1, -1):
+        out = out * h + coeffs[:, j]
+    return out
+
+
+def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, factor_pars: NDArray,
+                    dense: bool, fp_type: Any, span_index: int) -> Advance:
+    """Run the Sundman integrator ``ta`` of the chart from ``(t, y)`` to ``t_final`` or its first switch event.
+
+    ``pars`` are the chart's (:attr:`~manifold.compiled.ChartNumerics.pars`: up to ``span_index``),
+    ``factor_pars`` the time factor's.  Times in the result are physical; a segment that reaches
+    ``t_final`` ends exactly there (its ``u = 1`` event, located by heyoka to a rounding).
+
+    Numerical trap: ``u`` is a state variable, so each step rounds it by ``eps |u|``, and ``t`` by
+    ``eps |u (t_final - t_start)|``; over a long segment that would pile up to ``eps`` times the
+    segment's length per step.  So every
+    :data:`RESTART_STEPS` steps ``u`` restarts at 0 from the time reached, which bounds the loss
+    by ``RESTART_STEPS eps t_final`` over the whole run.  A restart, in the step callback, falls between
+    steps, so it costs no step (heyoka reads state and parameters afresh at each step).
+    """
+    ta.state[:] = np.append(y, fp_type(0.0))
+    ta.time = fp_type(0.0)
+    ta.pars[:] = np.concatenate([pars[:span_index], as_fp([1.0], fp_type) / (t_final - t), factor_pars])[: len(ta.pars)]
+    ta.reset_cooldowns()
+    progress = step_callback()
+    n_events, forward = len(ta.t_events), float(t_final - t) > 0  # dt/dtau > 0: tau runs with t
+    taus, tcs, origins, spans = [ta.time], [], [], []
+    clock = {"origin": t, "span": t_final - t, "steps": 0}  # t = origin + span u
+
+    def record(ta: Any) -> bool:
+        origin, span = clock["origin"], clock["span"]
+        clock["steps"] += 1
+        if dense:
+            tcs.append(ta.tc.copy())
+            taus.append(ta.time)
+            origins.append(origin)
+            spans.append(span)
+        now = origin + span * ta.state[-1]
+        if progress is not None:
+            progress(SimpleNamespace(time=now))
+        if clock["steps"] % RESTART_STEPS == 0 and now != t_final:  # between steps; t_final: its event has fired
+            clock["origin"], clock["span"] = now, t_final - now
+            ta.state[-1] = fp_type(0.0)
+            ta.pars[span_index] = 1 / clock["span"]
+        return True
+
+    outcome, _, _, n_steps, *_ = ta.propagate_until(fp_type(TAU_LIMIT if forward else -TAU_LIMIT),
+                                                    callback=record, write_tc=dense)
+    state = np.array(ta.state)
+    y_end = state[:-1]
+    event, failure, t_end = None, None, clock["origin"] + clock["span"] * state[-1]
+    if outcome == hy.taylor_outcome.time_limit:
+        failure = f"Sundman time reached |tau| = {TAU_LIMIT:g} before t_final"
+    else:
+        event = -outcome.value - 1
+        if not 0 <= event < n_events:
+            event, failure = None, str(outcome)
+        elif event == n_events - 1:  # u = 1: t_final reached
+            event, t_end = None, t_final
+    out = None
+    if dense and n_steps > 0:
+        tau_dense = TaylorDense(np.array(taus), np.array(tcs), fp_type)
+        widths = tau_dense.times[1:] - tau_dense.times[:-1]
+        u_ends = _horner(tau_dense.tcs[:, -1, :], widths)
+        out = SundmanDense(tau_dense, np.array(origins), np.array(spans), u_ends)
+        times = out.origins + out.spans * u_ends
+        times[-1] = t_end
+        states = np.concatenate([tau_dense.tcs[1:, :-1, 0], y_end[None, :]])
+    else:
+        times, states = np.array([t_end]), y_end[None, :]
+    return Advance(t_end, y_end, n_steps, event, times, states, out, failure)
+
+
+class SundmanStepper(TaylorStepper):
+    """heyoka's Taylor method in Sundman's time ``dt = s(p) dtau`` (see the module docstring).
+
+    Parameters
+    ----------
+    factor
+        The :class:`TimeFactor` (for a chain: :class:`linkage.time_factor.ChainTimeFactor`).
+    tol, compact_mode, opt_level
+        As for :class:`~manifold.steppers.TaylorStepper`.
+    """
+
+    name = "taylor-sundman"
+
+    def __init__(self, factor: TimeFactor, tol: float | None = None, **options: Any) -> None:
+        if not isinstance(factor, TimeFactor):
+            raise TypeError(f"factor must be a manifold.sundman.TimeFactor, got {type(factor).__name__}")
+        super().__init__(tol, **options)
+        self.factor = factor
+
+    def __repr__(self) -> str:
+        return f"SundmanStepper({self.factor!r}, tol={self.tol!r}, compact_mode={self.compact_mode}, opt_level={self.opt_level})"
+
+    @contextmanager
+    def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
+                switching: bool) -> Iterator[Any]:
+        kappa = as_fp(self.factor.parameters(), fp_type)
+        span_index = family.layout.span_index
+        with family.integrator(fp_type, self.tol, form, backward, self.compact_mode, self.opt_level,
+                               factor=self.factor) as ta:
+            yield lambda t, y, t_final, pars, dense: sundman_advance(ta, t, y, t_final, pars, kappa, dense,
+                                                                     fp_type, span_index)

@@ -1,0 +1,154 @@
+"""Sundman's time on the chart path (:mod:`manifold.sundman`, :mod:`linkage.time_factor`).
+
+The change of time variable must not change the motion: the same geodesic, the
+same switches, the same energy, at physical times.  And the factor must be the
+determinant it claims to be, positive off the singular configurations.
+"""
+
+from __future__ import annotations
+
+import heyoka as hy
+import mpmath as mp
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import manifold.progress
+from linkage import Chain
+from linkage.time_factor import ChainTimeFactor, multiplier_determinant
+from manifold import solve_chart_exp_ode
+from manifold.progress import ProgressUpdate
+from manifold.steppers import TaylorStepper
+from manifold.sundman import SundmanStepper
+
+from .conftest import unit_speed_start
+
+
+def _numpy_determinant(rods: np.ndarray, w: np.ndarray) -> float:
+    """``det(G K^-1 G^T)`` with rows ``e_k`` on hinge ``k`` and ``-e_k`` on hinge ``k - 1`` (pins dropped)."""
+    n = len(rods)
+    G = np.zeros((n, 2 * (n - 1)))
+    for k in range(n):
+        if k < n - 1:
+            G[k, 2 * k : 2 * k + 2] = rods[k]
+        if k > 0:
+            G[k, 2 * (k - 1) : 2 * k] = -rods[k]
+    return float(np.linalg.det(G @ np.kron(np.diag(w), np.eye(2)) @ G.T))
+
+
+def _coefficients(rods: np.ndarray, w: np.ndarray) -> tuple:
+    l2 = np.sum(rods**2, axis=1)
+    return [None, *(w * w)], [None, *(w * l2[1:])], [None, *(w * l2[:-1])]
+
+
+@settings(max_examples=60, deadline=None)
+@given(n=st.integers(2, 8), seed=st.integers(0, 2**32 - 1), bend=st.sampled_from([1.0, 1e-3, 1e-7]))
+def test_the_factor_is_the_multiplier_determinant_and_positive_near_straight(n, seed, bend):
+    """Against numpy's determinant, and near a straight chain (rods turning by ``bend``) against 50 digits:
+    the continuant has no cancellation, so it keeps its relative accuracy where numpy's LU loses it."""
+    rng = np.random.default_rng(seed)
+    angles = np.cumsum(rng.uniform(-bend, bend, n))
+    rods = rng.uniform(0.3, 2.0, n)[:, None] * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    w = rng.uniform(0.1, 10.0, n - 1)
+    got = multiplier_determinant([tuple(r) for r in rods], *_coefficients(rods, w))
+    assert got > 0
+    if bend == 1.0:
+        assert got == pytest.approx(_numpy_determinant(rods, w), rel=1e-10)
+    with mp.workdps(50):
+        R = [[mp.mpf(float(x)) for x in r] for r in rods]
+        n_ = len(R)
+        G = mp.zeros(n_, 2 * (n_ - 1))
+        for k in range(n_):
+            if k < n_ - 1:
+                G[k, 2 * k], G[k, 2 * k + 1] = R[k]
+            if k > 0:
+                G[k, 2 * (k - 1)], G[k, 2 * k - 1] = -R[k][0], -R[k][1]
+        Kinv = mp.diag([mp.mpf(float(x)) for x in np.repeat(w, 2)])
+        exact = mp.det(G * Kinv * G.T)
+    assert abs(got - float(exact)) <= 1e-12 * float(exact) + 1e-300
+
+
+def _pair(chain: Chain, h0, v0, T: float, **kwargs):
+    plain = solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0), T, **kwargs)
+    sundman = solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0), T,
+                                  stepper=SundmanStepper(ChainTimeFactor(chain)), **kwargs)
+    return plain, sundman
+
+
+@pytest.mark.parametrize("n, L, masses, T", [
+    (3, 1.6, 1.0, 12.0), (4, 2.7, 1.0, 15.0), (4, 3.5, [0.1, 1.0, 10.0], -12.0),
+    (5, 3.2, [0.3, 2.0, 1.0, 0.5], 10.0), (6, 4.9, 1.0, 8.0),
+])
+def test_sundman_time_gives_the_same_motion_switches_and_energy(n, L, masses, T):
+    chain = Chain(n, L, hinge_masses=masses)
+    rng = np.random.default_rng(n)
+    h0, v0 = unit_speed_start(chain, rng.uniform(-1.0, 1.0, n - 2), rng.normal(size=n - 2))
+    plain, sundman = _pair(chain, h0, v0, T)
+    assert sundman.t_reached == T and sundman.status == plain.status
+    ts = np.linspace(0.0, T, 51)
+    assert np.max(np.abs(sundman(ts)[0] - plain(ts)[0])) <= 1e-10
+    assert np.max(np.abs(sundman.end_state()[0] - plain.end_state()[0])) <= 1e-10
+    assert [(s.from_chart, s.to_chart) for s in sundman.switches] == [(s.from_chart, s.to_chart) for s in plain.switches]
+    assert np.allclose([s.time for s in sundman.switches], [s.time for s in plain.switches], atol=1e-9, rtol=0)
+    E = np.asarray(sundman.energies, dtype=float)
+    assert np.max(np.abs(E / E[0] - 1)) <= 1e-13
+    times = np.asarray(sundman.energy_times, dtype=float)
+    assert np.all(np.diff(times) * np.sign(T) > 0) and times[-1] == T  # physical, in order, ending at T
+    grid = solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0), T, dense=False, t_eval=ts,
+                               stepper=SundmanStepper(ChainTimeFactor(chain)))
+    assert np.max(np.abs(grid.points - plain(ts)[0])) <= 1e-10
+
+
+def test_with_masses_the_weighted_factor_saves_steps_and_a_unit_one_would_not():
+    """The point of the factor: steps fall where ``K`` is far from the identity, because the factor is that of
+    the real ``K``; the same determinant with unit weights (a factor for the wrong metric) saves few."""
+
+    class UnitWeights(ChainTimeFactor):
+        key = ("unit-weight chain determinant (test)", 4)
+
+        def parameters(self):
+            values = super().parameters()
+            values[1:] = ChainTimeFactor(Chain(4, 2.7)).parameters()[1:]
+            return values
+
+    chain = Chain(4, 2.7, hinge_masses=[0.1, 1.0, 10.0])
+    counts = {"t": 0, "weighted": 0, "unit": 0}
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        h0, v0 = unit_speed_start(chain, rng.uniform(-1.0, 1.0, 2), rng.normal(size=2))
+        p0, w0 = chain.to_point(h0), chain.to_point(v0)
+        for name, stepper in (("t", TaylorStepper()), ("weighted", SundmanStepper(ChainTimeFactor(chain))),
+                              ("unit", SundmanStepper(UnitWeights(chain)))):
+            counts[name] += solve_chart_exp_ode(chain.metric(), p0, w0, 30.0, stepper=stepper, dense=False).n_steps
+    assert counts["weighted"] < 0.75 * counts["t"]
+    assert counts["weighted"] < 0.8 * counts["unit"]
+
+
+def test_sundman_time_in_real128_agrees_with_t_to_its_precision():
+    chain = Chain(4, 2.6)
+    h0, v0 = unit_speed_start(chain, [0.4, -0.3], [0.7, 0.5])
+    plain, sundman = _pair(chain, h0, v0, 1.5, fp_type=hy.real128)
+    ts = np.linspace(0.0, 1.5, 7)
+    assert float(np.max(np.abs(sundman(ts)[0] - plain(ts)[0]))) <= 1e-28
+    E = sundman.energies
+    assert max(abs(float(e / E[0] - 1)) for e in E) <= 1e-31
+
+
+def test_progress_reports_physical_times(monkeypatch):
+    monkeypatch.setattr(manifold.progress, "STEP_INTERVAL", 0.0)
+    chain = Chain(4, 2.7)
+    h0, v0 = unit_speed_start(chain, [0.2, 0.3], [0.5, -0.9])
+    updates: list[ProgressUpdate] = []
+    sol = solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0), 6.0,
+                              stepper=SundmanStepper(ChainTimeFactor(chain)), progress=updates.append)
+    steps = [u.t for u in updates if u.kind == "step"]
+    assert len(steps) == sol.n_steps and np.all(np.diff(steps) > 0) and abs(steps[-1] - 6.0) <= 1e-12
+    assert updates[-1].kind == "done" and updates[-1].t == 6.0
+
+
+def test_bad_factors_are_refused_by_name():
+    with pytest.raises(TypeError, match="factor must be a manifold.sundman.TimeFactor"):
+        SundmanStepper("det M")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="chain must be a linkage.Chain"):
+        ChainTimeFactor("chain")  # type: ignore[arg-type]
