@@ -21,10 +21,12 @@ from numpy.typing import ArrayLike, NDArray
 from manifold import GeodesicSolution, InducedMetric, solve_chart_exp_ode
 from manifold.constrained import solve_constrained
 from manifold.progress import ProgressArgument
+from manifold.sundman import SundmanStepper
 
 from .chain import Chain
 from .constraints import ChainSystem, start_state
 from .ensemble import EnsembleMotion, free_motions
+from .time_factor import ChainTimeFactor
 from .lyapunov import lyapunov_exponent, lyapunov_exponents
 
 __all__ = ["METHODS", "ChainMotion", "EnsembleMotion", "free_motion", "free_motions", "lyapunov_exponent",
@@ -156,7 +158,10 @@ def free_motion(
 
     * ``method="charts"``: in the atlas of suspension charts, switching chart
       at events (:func:`manifold.solve_chart_exp_ode`); gives chart
-      parameters and the switch log; only where the chain has an atlas
+      parameters and the switch log; by default in Sundman's time
+      ``dt = det M dtau`` (:class:`manifold.sundman.SundmanStepper` with
+      :class:`linkage.time_factor.ChainTimeFactor`: the same motion in 13-40 %
+      fewer steps; ``stepper=TaylorStepper()`` integrates in ``t``); only where the chain has an atlas
       (:attr:`Chain.has_atlas`: the sphere with ``L`` its dominant side,
       ``R - 2 mu < L < R``; ``n - 2 < L < n`` for unit rods), else ``ValueError``
       naming ``method="hinges"``;
@@ -191,7 +196,7 @@ def free_motion(
         instead.  See :mod:`manifold.progress`.
     **kwargs
         Passed on: to :func:`manifold.solve_chart_exp_ode` for ``"charts"``
-        (``stepper``, ``fp_type``, ``tol``, ``q_out``, ``form``, ``dense``,
+        (``stepper``, ``fp_type``, ``tol`` (of the default stepper), ``q_out``, ``form``, ``dense``,
         ``t_eval``, ``throw``, ...), to :func:`manifold.constrained.solve_constrained`
         for ``"hinges"`` (``fp_type``, ``tol``, ``stabilisation``, ``rate``,
         ``projection_interval``, ``compact_mode``, ``dense``, ``t_eval``, ``throw``).
@@ -204,6 +209,8 @@ def free_motion(
         solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, metric=chart_metric(chain),
                                      progress=progress, **kwargs)
     else:
+        if "stepper" not in kwargs:  # Sundman's time: 13-40 % fewer steps (docs/methods.md)
+            kwargs["stepper"] = SundmanStepper(ChainTimeFactor(chain), tol=kwargs.pop("tol", None))
         solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, project_velocity=True, progress=progress,
                                        **kwargs)
     return ChainMotion(chain, solution)

@@ -130,7 +130,7 @@ def test_sundman_time_in_real128_agrees_with_t_to_its_precision():
     h0, v0 = unit_speed_start(chain, [0.4, -0.3], [0.7, 0.5])
     plain, sundman = _pair(chain, h0, v0, 1.5, fp_type=hy.real128)
     ts = np.linspace(0.0, 1.5, 7)
-    assert float(np.max(np.abs(sundman(ts)[0] - plain(ts)[0]))) <= 1e-28
+    assert float(np.max(np.abs(sundman(ts)[0] - plain(ts)[0]))) <= 1e-31  # measured 3.9e-34
     E = sundman.energies
     assert max(abs(float(e / E[0] - 1)) for e in E) <= 1e-31
 
