@@ -14,8 +14,10 @@
 Each line also prints how far apart the two end states are (both runs at heyoka's default tolerance).
 The step of a Taylor method is limited by the nearest singularity of the solution in complex time;
 multiplying by ``det M`` removes those where ``M = G K^-1 G^T`` is singular, so falling step counts
-suggest that these are the limiting ones.  A study for ``docs/methods.md``: the library does not
-integrate in ``tau``.
+suggest that these are the limiting ones.  A study for ``docs/methods.md``, on bare equations (the
+chart equations with ``B = I`` in the best chart's own frame, and ``det M`` of that frame's hinges); the
+chart path's own Sundman stepper, with each chart's map and the chain's masses, is :mod:`manifold.sundman`, measured by
+``python -m benchmarks.method_speed --sections 23``.
 """
 
 from __future__ import annotations
