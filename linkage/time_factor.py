@@ -37,37 +37,43 @@ def multiplier_determinant(rods: Sequence[tuple[Any, Any]], alpha: Sequence[Any]
                            gamma: Sequence[Any]) -> Any:
     """``theta_n`` of the module docstring for rods ``(x, y)`` (numbers, arrays or heyoka expressions).
 
-    ``alpha[k] = w_k^2``, ``beta[k] = w_k |e_{k+1}|^2`` (``k = 1..n-1``: the hinge between rods ``k``
-    and ``k + 1``) and ``gamma[k] = w_k |e_k|^2`` (``k = 1..n-1``); index 0 of each is unused.
+    ``alpha = (w_1^2, ..., w_{n-1}^2)``, ``beta = (w_2 |e_3|^2, ..., w_{n-1} |e_n|^2)`` and
+    ``gamma = (w_1 |e_1|^2, ..., w_{n-2} |e_{n-2}|^2)`` (``w_k`` the weight of the hinge between rods
+    ``k`` and ``k + 1``); only these enter (``F_1 = 0``, and ``theta_{n-1}`` is not needed).
     """
     n = len(rods)
-    theta = [1, gamma[1]]
+    theta: list[Any] = [1, gamma[0] if n > 2 else None]
     F: Any = None  # F_1 = 0
     for k in range(2, n + 1):
         (ax, ay), (bx, by) = rods[k - 2], rods[k - 1]
         cross = ax * by - ay * bx
-        lagrange = alpha[k - 1] * (cross * cross)  # a square: half the Taylor recursion of a product
-        F = lagrange if F is None else lagrange * theta[k - 2] + beta[k - 1] * F
-        theta.append(F if k == n else gamma[k] * theta[k - 1] + F)
+        lagrange = alpha[k - 2] * (cross * cross)  # a square: half the Taylor recursion of a product
+        F = lagrange if F is None else lagrange * theta[k - 2] + beta[k - 3] * F
+        theta.append(F if k == n else gamma[k - 1] * theta[k - 1] + F if k < n - 1 else None)
     return theta[n]
 
 
 class ChainTimeFactor(TimeFactor):
     """``det(G K^-1 G^T)`` of ``chain`` (module docstring), for :class:`manifold.sundman.SundmanStepper`.
 
-    Parameters ``kappa``: ``L``, then ``alpha``, ``beta``, ``gamma`` (``n - 1`` each) of
-    :func:`multiplier_determinant`, from the chain's lengths and the diagonal of its metric.
+    Parameters ``kappa``: ``L``, then ``alpha`` (``n - 1``), ``beta`` and ``gamma`` (``n - 2`` each) of
+    :func:`multiplier_determinant`, from the chain's lengths and the diagonal of its metric, made
+    dimensionless by ``c = mean(w) mean(l^2)``: the factor is ``det M / c^n``, of order 1 on ordinary
+    configurations whatever the chain's size and masses (its Taylor coefficients in ``tau`` scale like
+    its ``k``-th power: with hinge masses 1e-4 or 1e6, or rods of 0.01, the raw ``det M`` overflowed).
     """
 
     def __init__(self, chain: Chain) -> None:
         if not isinstance(chain, Chain):
             raise TypeError(f"chain must be a linkage.Chain, got {type(chain).__name__}")
         self.n = chain.n
-        self.n_params = 3 * chain.n - 2
+        self.n_params = 3 * chain.n - 4
         K = np.asarray(chain.ambient_metric, dtype=float)
         w = 1.0 / np.diag(K)[::2]  # hinge k = 1..n-1
         l2 = np.asarray(chain.lengths, dtype=float) ** 2
-        self._values = np.concatenate([[chain.L], w * w, w * l2[1:], w * l2[:-1]])
+        w, scale = w / np.mean(w), np.mean(l2)  # the crosses in alpha's terms carry l^4: alpha / scale^2
+        l2 = l2 / scale
+        self._values = np.concatenate([[chain.L], w * w / scale**2, w[1:] * l2[2:], w[:-1] * l2[:-2]])
 
     @property
     def key(self) -> tuple:
@@ -78,15 +84,9 @@ class ChainTimeFactor(TimeFactor):
 
     def expression(self, p: Sequence[Any], pars: Sequence[Any]) -> Any:
         n = self.n
-        ends = [(0.0, 0.0)] + [(p[2 * j], p[2 * j + 1]) for j in range(n - 1)] + [(pars[0], 0.0)]
-        rods = [(b[0] - a[0], b[1] - a[1]) for a, b in zip(ends[:-1], ends[1:])]
-        rods[0] = (p[0], p[1])  # from the pin at 0: no "- 0" in the expressions
-        rods[-1] = (pars[0] - p[2 * n - 4], -p[2 * n - 3])
-
-        def row(start: int) -> list:
-            return [None] + [pars[start + j] for j in range(n - 1)]
-
-        return multiplier_determinant(rods, row(1), row(n), row(2 * n - 1))
+        inner = [(p[2 * j] - p[2 * j - 2], p[2 * j + 1] - p[2 * j - 1]) for j in range(1, n - 1)]
+        rods = [(p[0], p[1]), *inner, (pars[0] - p[2 * n - 4], -p[2 * n - 3])]  # pinned at 0 and (L, 0)
+        return multiplier_determinant(rods, pars[1:n], pars[n:2 * n - 2], pars[2 * n - 2:3 * n - 4])
 
     def parameters(self) -> NDArray:
         return self._values.copy()

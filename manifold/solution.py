@@ -142,11 +142,15 @@ class TaylorDense:
 
     def at(self, steps: NDArray, h: NDArray) -> NDArray:
         """States ``(m, 2k)`` at offsets ``h`` from the starts of the steps ``steps`` (both ``(m,)``)."""
-        coeffs = self.tcs[steps]  # (m, 2k, order+1)
-        out = coeffs[:, :, -1]
-        for j in range(coeffs.shape[2] - 2, -1, -1):
-            out = out * h[:, None] + coeffs[:, :, j]
-        return out
+        return polynomial_values(self.tcs[steps], h[:, None])
+
+
+def polynomial_values(coeffs: NDArray, h: NDArray) -> NDArray:
+    """``sum_j coeffs[..., j] h^j`` by Horner's scheme, ``h`` broadcast against ``coeffs[..., 0]``."""
+    out = coeffs[..., -1]
+    for j in range(coeffs.shape[-1] - 2, -1, -1):
+        out = out * h + coeffs[..., j]
+    return out
 
 
 class CallableDense:

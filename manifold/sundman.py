@@ -18,9 +18,10 @@ nothing here knows what the constraints are.
 :class:`SundmanStepper` plugs into the atlas loop like any stepper: each
 segment runs in ``tau`` from 0 until the segment's time
 ``u = (t - t_start) / (t_final - t_start)`` reaches 1 (an event) or a switch event
-fires, and reports physical times.  Its dense output (:class:`SundmanDense`)
-finds ``tau`` for a requested ``t`` by Newton's method on the step's polynomial
-``u(tau)``, which is increasing (``du/dtau = s / (t_final - t_start)``).
+fires, and reports physical times (``u`` restarts from the time reached every
+:data:`RESTART_STEPS` steps: ``t = origin + (t_final - origin) u``).  Its dense
+output (:class:`SundmanDense`) finds ``tau`` for a requested ``t`` by Newton's
+method on the step's polynomial ``u(tau)``, monotone in ``tau``.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from numpy.typing import NDArray
 from .compiled import CompiledFamily
 from .precision import as_fp, unit_roundoff
 from .progress import step_callback
-from .solution import TaylorDense
+from .solution import TaylorDense, polynomial_values
 from .steppers import Advance, TaylorStepper
 
 #: Bound on ``|tau|`` of one segment; the segment ends by its ``u = 1`` event long before (``tau`` is about
@@ -52,6 +53,9 @@ RESTART_STEPS = 16
 
 class TimeFactor(ABC):
     """A positive function ``s(p; kappa)`` of the ambient point whose complex zeros are the motion's singularities.
+
+    It should be dimensionless, of order 1 on ordinary configurations: the Taylor coefficients in
+    ``tau`` scale like its powers, and a factor of 1e20 overflows them at order 15.
 
     Attributes
     ----------
@@ -99,6 +103,7 @@ class SundmanDense:
         return self.tau_dense.nbytes + int(self.origins.nbytes + self.spans.nbytes + self.u_ends.nbytes)
 
     def __call__(self, ts: NDArray) -> NDArray:
+        """States ``(len(ts), 2k)`` at the physical times ``ts`` (inside the segment)."""
         fp = self.tau_dense.fp_type
         ts = as_fp(ts, fp)
         s = np.searchsorted(self._t_ends[:-1] * self._sign, ts.astype(float) * self._sign, side="left")
@@ -109,8 +114,8 @@ class SundmanDense:
         slope = coeffs[:, 1:] * np.arange(1, coeffs.shape[1])
         eps = 8 * unit_roundoff(fp)
         for _ in range(NEWTON_ITERATIONS):
-            rate = _horner(slope, h)  # du/dtau: of the sign of tau's direction, never 0
-            step = (_horner(coeffs, h) - target) / rate
+            rate = polynomial_values(slope, h)  # du/dtau: of the sign of tau's direction, never 0
+            step = (polynomial_values(coeffs, h) - target) / rate
             h = h - step
             # converged to what u's own rounding (eps |u| <= eps, u in [0, 1]) leaves of tau: eps / |rate|
             if np.all(np.abs(step.astype(float)) <= eps * np.abs((width + 1 / rate).astype(float))):
@@ -119,14 +124,6 @@ class SundmanDense:
             raise ArithmeticError(f"Sundman time: tau(t) did not converge in {NEWTON_ITERATIONS} Newton steps "
                                   f"(largest step {np.max(np.abs(step.astype(float))):.3g})")
         return self.tau_dense.at(s, h)[:, :-1]
-
-
-def _horner(coeffs: NDArray, h: NDArray) -> NDArray:
-    """``sum_j coeffs[:, j] h^j`` row by row."""
-    out = coeffs[:, -1]
-    for j in range(coeffs.shape[1] - 2, -1, -1):
-        out = out * h + coeffs[:, j]
-    return out
 
 
 def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, factor_pars: NDArray,
@@ -140,10 +137,15 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
     Numerical trap: ``u`` is a state variable, so each step rounds it by ``eps |u|``, and ``t`` by
     ``eps |u (t_final - t_start)|``; over a long segment that would pile up to ``eps`` times the
     segment's length per step.  So every
-    :data:`RESTART_STEPS` steps ``u`` restarts at 0 from the time reached, which bounds the loss
-    by ``RESTART_STEPS eps t_final`` over the whole run.  A restart, in the step callback, falls between
+    :data:`RESTART_STEPS` steps ``u`` restarts at 0 from the time reached, which bounds the loss by
+    about ``(RESTART_STEPS + steps / RESTART_STEPS) eps |t_final|`` over the whole run (each restart
+    rounds ``origin + span u`` once; heyoka keeps its own time in double-length arithmetic, so ``t``
+    in the plain stepper has no such loss).  A factor that vanishes on the path would stop ``t``:
+    a restart that finds the time unmoved ends the segment as a failure instead of looping.  A restart, in the step callback, falls between
     steps, so it costs no step (heyoka reads state and parameters afresh at each step).
     """
+    if t_final == t:  # nothing to integrate (a switch or wrap event can end a segment exactly at t_final)
+        return Advance(t, y, 0, None, np.array([t]), y[None, :])
     ta.state[:] = np.append(y, fp_type(0.0))
     ta.time = fp_type(0.0)
     ta.pars[:] = np.concatenate([pars[:span_index], as_fp([1.0], fp_type) / (t_final - t), factor_pars])[: len(ta.pars)]
@@ -151,7 +153,7 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
     progress = step_callback()
     n_events, forward = len(ta.t_events), float(t_final - t) > 0  # dt/dtau > 0: tau runs with t
     taus, tcs, origins, spans = [ta.time], [], [], []
-    clock = {"origin": t, "span": t_final - t, "steps": 0}  # t = origin + span u
+    clock = {"origin": t, "span": t_final - t, "steps": 0, "now": t, "stalled": False}  # t = origin + span u
 
     def record(ta: Any) -> bool:
         origin, span = clock["origin"], clock["span"]
@@ -161,10 +163,14 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
             taus.append(ta.time)
             origins.append(origin)
             spans.append(span)
-        now = origin + span * ta.state[-1]
+        now = clock["now"] = origin + span * ta.state[-1]
         if progress is not None:
             progress(SimpleNamespace(time=now))
-        if clock["steps"] % RESTART_STEPS == 0 and now != t_final:  # between steps; t_final: its event has fired
+        if clock["steps"] % RESTART_STEPS == 0 and now != t_final:  # between steps (1 / 0 if t_final is hit exactly)
+            if abs(float(now - origin)) <= RESTART_STEPS * unit_roundoff(fp_type) * abs(float(span)):
+                # s(p) has vanished on the path: t no longer moves
+                clock["stalled"] = True
+                return False
             clock["origin"], clock["span"] = now, t_final - now
             ta.state[-1] = fp_type(0.0)
             ta.pars[span_index] = 1 / clock["span"]
@@ -177,17 +183,21 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
     event, failure, t_end = None, None, clock["origin"] + clock["span"] * state[-1]
     if outcome == hy.taylor_outcome.time_limit:
         failure = f"Sundman time reached |tau| = {TAU_LIMIT:g} before t_final"
+    elif clock["stalled"]:
+        failure = f"Sundman time stalled at t = {clock['now']}: the time factor vanished on the path"
     else:
         event = -outcome.value - 1
         if not 0 <= event < n_events:
             event, failure = None, str(outcome)
         elif event == n_events - 1:  # u = 1: t_final reached
             event, t_end = None, t_final
+    if failure is not None:
+        t_end = clock["now"]  # the last step's end, not a failed step's (heyoka keeps the state before it)
     out = None
     if dense and n_steps > 0:
         tau_dense = TaylorDense(np.array(taus), np.array(tcs), fp_type)
         widths = tau_dense.times[1:] - tau_dense.times[:-1]
-        u_ends = _horner(tau_dense.tcs[:, -1, :], widths)
+        u_ends = polynomial_values(tau_dense.tcs[:, -1, :], widths)
         out = SundmanDense(tau_dense, np.array(origins), np.array(spans), u_ends)
         times = out.origins + out.spans * u_ends
         times[-1] = t_end
