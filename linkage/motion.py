@@ -26,8 +26,8 @@ from manifold.sundman import SundmanStepper
 from .chain import Chain
 from .constraints import ChainSystem, start_state
 from .ensemble import EnsembleMotion, free_motions
-from .time_factor import ChainTimeFactor
 from .lyapunov import lyapunov_exponent, lyapunov_exponents
+from .time_factor import ChainTimeFactor
 
 __all__ = ["METHODS", "ChainMotion", "EnsembleMotion", "free_motion", "free_motions", "lyapunov_exponent",
            "lyapunov_exponents"]

@@ -190,13 +190,14 @@ class SymbolicPieces:
         return list(zip(self.a, self.c)) + list(zip(self.c, acc))
 
     def sundman_equations(self, factor: Any, form: str = "embedded") -> list[tuple]:
-        r"""The geodesic equations in Sundman's time: ``dy/dtau = s(p) dy/dt`` and ``du/dtau = s(p) / (t_final - t_start)``.
+        """The geodesic equations in Sundman's time: ``dy/dtau = s(p) dy/dt`` and ``du/dtau = s(p) / (t_final - origin)``.
 
         ``s`` is ``factor.expression`` (a :class:`manifold.sundman.TimeFactor`) of the ambient point
         ``p = M z(a) + m`` (the chart's map, from ``pars``, so that one compiled system serves every chart),
-        with the factor's parameters after :attr:`Layout.span_index`.  ``u = (t - t_start) / (t_final - t_start)``
-        is the segment's time, in ``[0, 1]`` so that it does not widen heyoka's error norm (which is relative to
-        the state's largest component); the variable is the last of the state.
+        with the factor's parameters after :attr:`Layout.span_index`.  ``u = (t - origin) / (t_final - origin)``
+        is the segment's time (``origin``: its start, moved forward by the stepper's restarts), in ``[0, 1]`` so
+        that it does not widen heyoka's error norm (which is relative to the state's largest component); the
+        variable is the last of the state.
         """
         lay, N = self.layout, self.N
         M = [[hy.par[lay.map_index + r * N + s] for s in range(N)] for r in range(N)]

@@ -159,11 +159,7 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     callback = record if dense else progress
     outcome, _, _, n_steps, *_ = ta.propagate_until(t_final, callback=callback, write_tc=dense)
     y_end = np.array(ta.state)
-    event, failure = None, None
-    if outcome != hy.taylor_outcome.time_limit:
-        event = -outcome.value - 1  # heyoka reports terminal event k as outcome -(k + 1)
-        if not 0 <= event < n_events:
-            event, failure = None, str(outcome)
+    event, failure = (None, None) if outcome == hy.taylor_outcome.time_limit else terminal_event(outcome, n_events)
     out = None
     if dense and n_steps > 0:
         out = TaylorDense(np.array(step_times), np.array(tcs), fp_type)
@@ -172,6 +168,13 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     else:
         times, states = np.array([ta.time]), y_end[None, :]
     return Advance(ta.time, y_end, n_steps, event, times, states, out, failure)
+
+
+def terminal_event(outcome: Any, n_events: int) -> tuple[int | None, str | None]:
+    """``(event, None)`` for heyoka's outcome of terminal event ``event`` (reported as ``-(event + 1)``),
+    ``(None, why)`` for any other outcome that is not the time limit."""
+    event = -outcome.value - 1
+    return (event, None) if 0 <= event < n_events else (None, str(outcome))
 
 
 class ScipyStepper(Stepper):

@@ -40,7 +40,7 @@ from .compiled import CompiledFamily
 from .precision import as_fp, unit_roundoff
 from .progress import step_callback
 from .solution import TaylorDense, polynomial_values
-from .steppers import Advance, TaylorStepper
+from .steppers import Advance, TaylorStepper, terminal_event
 
 #: Bound on ``|tau|`` of one segment; the segment ends by its ``u = 1`` event long before (``tau`` is about
 #: ``t / s``, and ``s`` stays positive on the manifold).
@@ -136,13 +136,13 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
 
     Numerical trap: ``u`` is a state variable, so each step rounds it by ``eps |u|``, and ``t`` by
     ``eps |u (t_final - t_start)|``; over a long segment that would pile up to ``eps`` times the
-    segment's length per step.  So every
-    :data:`RESTART_STEPS` steps ``u`` restarts at 0 from the time reached, which bounds the loss by
-    about ``(RESTART_STEPS + steps / RESTART_STEPS) eps |t_final|`` over the whole run (each restart
-    rounds ``origin + span u`` once; heyoka keeps its own time in double-length arithmetic, so ``t``
-    in the plain stepper has no such loss).  A factor that vanishes on the path would stop ``t``:
-    a restart that finds the time unmoved ends the segment as a failure instead of looping.  A restart, in the step callback, falls between
-    steps, so it costs no step (heyoka reads state and parameters afresh at each step).
+    segment's length per step.  So every :data:`RESTART_STEPS` steps ``u`` restarts at 0 from the time
+    reached, which bounds the loss by about ``(RESTART_STEPS + steps / RESTART_STEPS) eps |t_final|`` over
+    the whole run (each restart rounds ``origin + span u`` once; heyoka keeps its own time in double-length
+    arithmetic, so ``t`` in the plain stepper has no such loss).  A restart, in the step callback, falls
+    between steps, so it costs no step (heyoka reads state and parameters afresh at each step).  A factor
+    that vanishes on the path would stop ``t``: a restart that finds the time unmoved ends the segment as
+    a failure instead of looping.
     """
     if t_final == t:  # nothing to integrate (a switch or wrap event can end a segment exactly at t_final)
         return Advance(t, y, 0, None, np.array([t]), y[None, :])
@@ -186,10 +186,8 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
     elif clock["stalled"]:
         failure = f"Sundman time stalled at t = {clock['now']}: the time factor vanished on the path"
     else:
-        event = -outcome.value - 1
-        if not 0 <= event < n_events:
-            event, failure = None, str(outcome)
-        elif event == n_events - 1:  # u = 1: t_final reached
+        event, failure = terminal_event(outcome, n_events)
+        if event == n_events - 1:  # u = 1: t_final reached
             event, t_end = None, t_final
     if failure is not None:
         t_end = clock["now"]  # the last step's end, not a failed step's (heyoka keeps the state before it)
