@@ -234,22 +234,32 @@ def _circle_scale(D: Any, l: Any, alpha: Any, up: Any, dn: Any, ops: Any) -> Any
     return alpha * ops.sqrt(_times(D, l) * ops.sinc(alpha * up / 2) * ops.sinc(alpha * dn / 2))
 
 
-def _elbow(base: Base, theta: Any, P2: Any, ops: Any) -> tuple[Any, Any]:
-    """``(c, r)`` with ``p_1 = p_2 (c + i nu r / 2)`` at the circle level: ``c = x / d``, ``r = y / (nu d) * 2``.
+def _elbow(base: Base, theta: Any, P2: Any, ops: Any) -> tuple[Any, Any, Any]:
+    """``(c, cbar, r)`` with ``p_1 = p_2 (c + i nu r / 2)`` and ``p_2 - p_1 = p_2 (cbar - i nu r / 2)`` at the
+    circle level: ``c = x / d``, ``cbar = 1 - c``, ``r = y / (nu d) * 2``.
 
-    ``c = 1/2 + (l_1 - l_2)(l_1 + l_2) / (2 d^2)`` and ``r = sqrt(d^2 - (l_1 - l_2)^2) / d^2``,
-    with ``d^2 - (l_1 - l_2)^2 = lo_2 (lo_2 + 2 |l_1 - l_2|)``, ``lo_2 = d - |l_1 - l_2|`` the
-    two-link chain's slack (carried, :meth:`Base.inner_lo`): it is tiny where the two
-    links fold flat, and the plain difference would cancel there.  Unit rods:
-    ``c = 1/2``, ``r = 1/d``.
+    With ``s = |l_1 - l_2|`` and ``lo_2 = d - s`` the two-link chain's slack (carried,
+    :meth:`Base.inner_lo`: tiny where the two links fold flat, where a plain difference would cancel):
+    ``r = sqrt(lo_2 (lo_2 + 2 s)) / d^2`` and
+
+        2 d^2 c = lo_2 (d + s) + 2 l_1 (l_1 - l_2),    2 d^2 cbar = lo_2 (d + s) - 2 l_2 (l_1 - l_2).
+
+    Numerical trap: ``c`` and ``cbar`` are the link vectors' ``p_1`` and ``p_2 - p_1`` in the elbow's frame,
+    so each must be accurate relative to its link.  ``1 - c`` or ``1/2 + (l_1 - l_2)(l_1 + l_2) / (2 d^2)``
+    cancel to ``l / d`` for a short ``l_2`` or ``l_1`` (a chart whose pinned base ``L`` is such a link turns
+    by it: 254x shorter lost 1.5x the bound); here the cancelling pair is at most ``4 l d``.
+    Unit rods: ``c = cbar = 1/2``, ``r = 1/d``.
     """
     l1, l2 = base.rods.l[0], base.rods.l[1]
     diff = l1 - l2
     d = ops.sqrt(P2)
     if _is_zero(diff):
-        return 0.5, 1 / d
+        return 0.5, 0.5, 1 / d
     lo2 = base.inner_lo(ops.sin(theta / 2), d, ops)
-    return 0.5 + diff * (l1 + l2) / (2 * P2), ops.sqrt(lo2 * (lo2 + 2 * ops.abs(diff))) / P2
+    s = ops.abs(diff)
+    fold = lo2 * (d + s)
+    return ((fold + 2 * l1 * diff) / (2 * P2), (fold - 2 * l2 * diff) / (2 * P2),
+            ops.sqrt(lo2 * (lo2 + 2 * s)) / P2)
 
 
 def _rod_slack(w: Cx, ops: Any) -> Any:
@@ -321,7 +331,7 @@ def chain_vectors(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1,
     """The hinges ``p_1 .. p_{n-1}`` of :func:`hinges` and the link vectors ``e_1 .. e_n``.
 
     Each link vector is formed as such (``l_m e^{i theta}`` in its level's frame, ``p_1`` and
-    ``p_2 - p_1 = p_2 (1 - c - i k)`` at the circle level), accurate relative to its own length: a
+    ``p_2 - p_1 = p_2 (cbar - i k)`` at the circle level, :func:`_elbow`), accurate relative to its own length: a
     difference of hinges would carry their rounding, ``eps`` times the chain's size, into a short link.
     """
     n = len(a) + 2
@@ -346,10 +356,10 @@ def chain_vectors(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1,
     theta = alpha * ops.sin(t)
     p2 = _last_hinge(base, theta, ops)
     nu = ops.cos(t) * _circle_scale(D, base.last, alpha, ops.one_plus_sin(t), ops.one_minus_sin(t), ops)
-    c, r = _elbow(base, theta, p2.abs2(), ops)
+    c, cbar, r = _elbow(base, theta, p2.abs2(), ops)
     k = nu * r / 2
     p1 = Cx(c * p2.re - k * p2.im, c * p2.im + k * p2.re)
-    e2 = Cx((1 - c) * p2.re + k * p2.im, (1 - c) * p2.im - k * p2.re)
+    e2 = Cx(cbar * p2.re + k * p2.im, cbar * p2.im - k * p2.re)
     e3 = Cx(_times(base.last, ops.cos(theta)), _times(base.last, ops.sin(theta)))
     return [place(p1), place(p2)] + outer[::-1], [place(p1), place(e2), place(e3)] + links[::-1]
 
@@ -420,7 +430,7 @@ def parameters(z: Sequence[Cx], L: Any, ops: Any, rods: Rods | None = None) -> l
     s = ops.ratio_or_zero(theta, alpha)
     up, dn = 1 + s, 1 - s  # enter only through sinc, whose relative error they barely change
     P2 = p2.abs2()
-    _, r = _elbow(base, theta, P2, ops)
+    _, _, r = _elbow(base, theta, P2, ops)
     nu = 2 * (p1.im * p2.re - p1.re * p2.im) / (r * P2)  # Im(p_1 conj p_2) = nu r P2 / 2
     c = ops.ratio_or_zero(nu, _circle_scale(base.D, base.last, alpha, up, dn, ops))
     out.append(ops.atan2(s, c))
