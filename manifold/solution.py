@@ -145,6 +145,22 @@ class TaylorDense:
         return polynomial_values(self.tcs[steps], h[:, None])
 
 
+class PointDense:
+    """The continuous output of a segment without steps (one that starts where it ends: a switch that lands
+    on ``t_final``): its one state, at its one time."""
+
+    def __init__(self, y: NDArray) -> None:
+        self.y = y
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held: the one state."""
+        return int(self.y.nbytes)
+
+    def __call__(self, ts: NDArray) -> NDArray:
+        return np.repeat(self.y[None, :], np.size(ts), axis=0)
+
+
 def polynomial_values(coeffs: NDArray, h: NDArray) -> NDArray:
     """``sum_j coeffs[..., j] h^j`` by Horner's scheme, ``h`` broadcast against ``coeffs[..., 0]``."""
     out = coeffs[..., -1]

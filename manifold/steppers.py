@@ -29,7 +29,7 @@ from scipy.integrate import solve_ivp
 from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
 from .precision import is_double, unit_roundoff
 from .progress import step_callback
-from .solution import CallableDense, DenseOutput, TaylorDense
+from .solution import CallableDense, DenseOutput, PointDense, TaylorDense
 from .validation import check_bool, check_index, check_real
 
 #: Largest accepted tolerance: looser runs are not geodesics (``tol = 1`` gave a 21 % energy error).
@@ -160,12 +160,13 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     outcome, _, _, n_steps, *_ = ta.propagate_until(t_final, callback=callback, write_tc=dense)
     y_end = np.array(ta.state)
     event, failure = (None, None) if outcome == hy.taylor_outcome.time_limit else terminal_event(outcome, n_events)
-    out = None
+    out: DenseOutput | None = None
     if dense and n_steps > 0:
         out = TaylorDense(np.array(step_times), np.array(tcs), fp_type)
         times = out.times[1:]
         states = np.concatenate([out.tcs[1:, :, 0], y_end[None, :]])  # a step's order-0 term is its start
     else:
+        out = PointDense(y_end) if dense else None
         times, states = np.array([ta.time]), y_end[None, :]
     return Advance(ta.time, y_end, n_steps, event, times, states, out, failure)
 

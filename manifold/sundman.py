@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 from .compiled import CompiledFamily
 from .precision import as_fp, unit_roundoff
 from .progress import step_callback
-from .solution import TaylorDense, polynomial_values
+from .solution import DenseOutput, PointDense, TaylorDense, polynomial_values
 from .steppers import Advance, TaylorStepper, terminal_event
 
 #: Bound on ``|tau|`` of one segment; the segment ends by its ``u = 1`` event long before (``tau`` is about
@@ -145,7 +145,7 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
     a failure instead of looping.
     """
     if t_final == t:  # nothing to integrate (a switch or wrap event can end a segment exactly at t_final)
-        return Advance(t, y, 0, None, np.array([t]), y[None, :])
+        return Advance(t, y, 0, None, np.array([t]), y[None, :], PointDense(y) if dense else None)
     ta.state[:] = np.append(y, fp_type(0.0))
     ta.time = fp_type(0.0)
     ta.pars[:] = np.concatenate([pars[:span_index], as_fp([1.0], fp_type) / (t_final - t), factor_pars])[: len(ta.pars)]
@@ -191,7 +191,7 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
             event, t_end = None, t_final
     if failure is not None:
         t_end = clock["now"]  # the last step's end, not a failed step's (heyoka keeps the state before it)
-    out = None
+    out: DenseOutput | None = None
     if dense and n_steps > 0:
         tau_dense = TaylorDense(np.array(taus), np.array(tcs), fp_type)
         widths = tau_dense.times[1:] - tau_dense.times[:-1]
@@ -201,6 +201,7 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
         times[-1] = t_end
         states = np.concatenate([tau_dense.tcs[1:, :-1, 0], y_end[None, :]])
     else:
+        out = PointDense(y_end) if dense else None
         times, states = np.array([t_end]), y_end[None, :]
     return Advance(t_end, y_end, n_steps, event, times, states, out, failure)
 

@@ -154,6 +154,30 @@ def test_a_segment_that_starts_at_t_final_is_empty_not_a_failure():
                                                                   chain.to_point(v0), 0.0).end_state()[0])
 
 
+@pytest.mark.parametrize("sundman", [False, True])
+def test_a_run_that_ends_on_a_switch_or_at_its_start_has_dense_output_there(sundman):
+    """A switch that lands on ``t_final`` leaves a last segment without steps (so does ``t_final = 0``); its
+    continuous output is its one state.  Ending the run at each switch time and its neighbours finds such
+    runs (2 in ``tau``, 1 in ``t`` here: the test asks for at least one); there the motion equals the long run's."""
+    chain = Chain(4, 2.5)
+    atlas = chain.atlas()
+    p0 = atlas.get_point(0, np.array([0.3, 1.0]))
+    i = atlas.get_chart_index(p0)
+    w0 = atlas.charts[i].tangent_vector(atlas.get_parameters(i, p0), np.array([1.0, -0.5]))
+    stepper = SundmanStepper(ChainTimeFactor(chain)) if sundman else TaylorStepper()
+    long = solve_chart_exp_ode(chain.metric(), p0, w0, 20.0, stepper=stepper)
+    assert long.n_switches >= 3
+    empty = 0
+    for s in long.switches:
+        for T in (s.time, np.nextafter(s.time, 0), np.nextafter(s.time, 30)):
+            sol = solve_chart_exp_ode(chain.metric(), p0, w0, float(T), stepper=stepper)
+            empty += sol.segments[-1].n_steps == 0
+            assert np.abs(sol(np.array([T, T / 2]))[0] - long(np.array([T, T / 2]))[0]).max() <= 1e-12
+    assert empty >= 1
+    start = solve_chart_exp_ode(chain.metric(), p0, w0, 0.0, stepper=stepper)
+    assert np.array_equal(start(0.0)[0], p0)
+
+
 def test_with_masses_the_weighted_factor_saves_steps_and_a_unit_one_would_not():
     """The point of the factor: steps fall where ``K`` is far from the identity, because the factor is that of
     the real ``K``; the same determinant with unit weights (a factor for the wrong metric) saves few."""
