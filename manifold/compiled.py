@@ -149,7 +149,7 @@ class CompiledFamily(ArtefactStore):
     @contextmanager
     def integrator(self, fp_type: Any = float, tol: float | None = None, form: str = "embedded",
                    backward: bool = False, compact_mode: bool = True, opt_level: int = DEFAULT_OPT_LEVEL,
-                   factor: Any = None) -> Iterator[Any]:
+                   factor: Any = None, velocity: Any = None) -> Iterator[Any]:
         """Lend a Taylor integrator of the geodesics with switch events; return it after use.
 
         The caller owns it inside the ``with`` block: set ``state``, ``time``
@@ -161,17 +161,24 @@ class CompiledFamily(ArtefactStore):
         combination is a separate integrator.  With a ``factor``
         (:class:`manifold.sundman.TimeFactor`) the equations are those of
         :meth:`~manifold.geodesic_system.SymbolicPieces.sundman_equations`, with one more
-        terminal event, last: the segment's time ``u`` reaching 1.
+        terminal event, last: the segment's time ``u`` reaching 1.  With a ``velocity``
+        (:class:`manifold.ambient_velocity.ConstrainedVelocity`) the state is ``(a, V)``, ``V = J c``
+        (:meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`; ``form`` is then unused),
+        with the constraint system's parameters at :meth:`~manifold.geodesic_system.Layout.constraint_index`.
         """
         tol = default_tolerance(fp_type) if tol is None else tol
-        key = ("integrator", fp_type, tol, form, backward, compact_mode, opt_level, None if factor is None else factor.key)
+        key = ("integrator", fp_type, tol, form, backward, compact_mode, opt_level,
+               None if factor is None else factor.key, None if velocity is None else velocity.key)
 
         def build() -> Any:
             P = self.pieces(fp_type)
             kw = {} if tol is None else {"tol": fp_type(tol)}
             equations, events = P.equations(form), P.events(backward)
+            if velocity is not None:
+                offset = self.layout.constraint_index(0 if factor is None else factor.n_params)
+                equations = P.ambient_velocity_equations(velocity.pieces(fp_type), velocity.n_params, offset)
             if factor is not None:
-                equations = P.sundman_equations(factor, form)
+                equations = P.sundman_equations(factor, equations)
                 events = events + [hy.t_event(equations[-1][0] - 1.0, **event_fp_kwargs(fp_type))]
             return hy.taylor_adaptive(equations, as_fp(np.zeros(len(equations)), fp_type), compact_mode=compact_mode,
                                       opt_level=opt_level, t_events=events, **kw, **heyoka_fp_kwargs(fp_type))
@@ -269,7 +276,7 @@ class ChartNumerics:
     Attributes
     ----------
     pars
-        The runtime parameters ``(theta, B, q_out, M, m)`` in ``fp_type`` (:class:`~manifold.geodesic_system.Layout`).
+        The runtime parameters ``(theta, B, q_out, M, m, M^{-1})`` in ``fp_type`` (:class:`~manifold.geodesic_system.Layout`).
     """
 
     def __init__(self, chart: Any, K: NDArray, q_out: float, fp_type: Any) -> None:
@@ -278,9 +285,10 @@ class ChartNumerics:
         self.M = as_fp(chart.linear_map, fp_type)
         self.M_inv = as_fp(chart.inverse_linear_map(), fp_type)
         self.m = chart.offset(fp_type)
-        # theta, B, q_out, then the chart's map M and offset m (read only in Sundman's time, manifold.sundman)
+        # theta, B, q_out, then the chart's map M, offset m and M^{-1} (read only in Sundman's time, manifold.sundman,
+        # and with the ambient velocity as state, manifold.ambient_velocity)
         self.pars = np.concatenate([self.compiled.layout.pack(chart.family_parameters, chart.core_metric(K), q_out, fp_type),
-                                    self.M.ravel(), self.m])
+                                    self.M.ravel(), self.m, self.M_inv.ravel()])
         for x in (self.M, self.M_inv, self.m, self.pars):  # shared by every solve on the chart (SymbolicChart.numerics)
             x.flags.writeable = False
         self._cf = self.compiled.transfer(fp_type)

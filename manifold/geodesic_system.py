@@ -65,11 +65,23 @@ class Layout:
         return self.q_out_index + 1
 
     @property
-    def span_index(self) -> int:
-        """Index of ``1 / (t_final - t_start)`` of a segment in Sundman's time, after ``M`` and ``m``;
-        the time factor's own parameters follow it."""
+    def inverse_map_index(self) -> int:
+        """Start of ``M^{-1}`` (``N x N``, row-major) in ``pars``, after ``M`` and ``m``.  Only the ambient-velocity
+        equations read it (:meth:`SymbolicPieces.ambient_velocity_equations`)."""
         N = self.n_points * self.block
         return self.map_index + N * N + N
+
+    @property
+    def span_index(self) -> int:
+        """Index of ``1 / (t_final - t_start)`` of a segment in Sundman's time, after ``M``, ``m`` and ``M^{-1}``;
+        the time factor's own parameters follow it."""
+        N = self.n_points * self.block
+        return self.inverse_map_index + N * N
+
+    def constraint_index(self, n_factor_params: int) -> int:
+        """Start of a constraint system's parameters (:meth:`SymbolicPieces.ambient_velocity_equations`): after
+        the span and the time factor's ``n_factor_params`` parameters (the span's slot is unused in ``t``)."""
+        return self.span_index + 1 + n_factor_params
 
     def metric_pars(self) -> list[list[hy.expression]]:
         """Symmetric matrix of parameter expressions for ``B``."""
@@ -189,22 +201,58 @@ class SymbolicPieces:
         acc = self.acceleration(form)
         return list(zip(self.a, self.c)) + list(zip(self.c, acc))
 
-    def sundman_equations(self, factor: Any, form: str = "embedded") -> list[tuple]:
-        """The geodesic equations in Sundman's time: ``dy/dtau = s(p) dy/dt`` and ``du/dtau = s(p) / (t_final - origin)``.
+    def _par_matrix(self, start: int) -> list[list[hy.expression]]:
+        """The ``N x N`` matrix of parameters ``par[start ..]``, row-major."""
+        N = self.N
+        return [[hy.par[start + r * N + s] for s in range(N)] for r in range(N)]
 
-        ``s`` is ``factor.expression`` (a :class:`manifold.sundman.TimeFactor`) of the ambient point
-        ``p = M z(a) + m`` (the chart's map, from ``pars``, so that one compiled system serves every chart),
-        with the factor's parameters after :attr:`Layout.span_index`.  ``u = (t - origin) / (t_final - origin)``
-        is the segment's time (``origin``: its start, moved forward by the stepper's restarts), in ``[0, 1]`` so
-        that it does not widen heyoka's error norm (which is relative to the state's largest component); the
-        variable is the last of the state.
+    def ambient_point(self) -> list[hy.expression]:
+        """``p = M z(a) + m``: the chart's point in the ambient frame (``M``, ``m`` from ``pars``, so that one
+        compiled system serves every chart of the family)."""
+        lay, N = self.layout, self.N
+        M = self._par_matrix(lay.map_index)
+        return [hy.sum([M[r][s] * self.z[s] for s in range(N)] + [hy.par[lay.map_index + N * N + r]]) for r in range(N)]
+
+    def ambient_velocity_equations(self, constrained: Any, n_constraint_pars: int, offset: int) -> list[tuple]:
+        r"""The geodesic with the chart frame's ambient velocity ``V = J c`` as state: ``(a, V)`` instead of ``(a, c)``.
+
+        .. math::
+
+            a' = g^{-1} J^T W V, \qquad V' = M^{-1} f(M z(a) + m, M V),
+
+        with ``f(x, v)`` the constrained acceleration ``K^{-1} G^T M_G^{-1} (-(dG/dt) v)`` of a
+        :class:`~manifold.constrained.ConstrainedSystem` whose zero set is the family's image (its ``x``, ``v`` in
+        the ambient frame; ``constrained`` its :class:`~manifold.constrained.ConstrainedPieces`, whose
+        ``n_constraint_pars`` parameters move to ``par[offset ..]``).  The chart's second derivatives
+        ``z_ab c^a c^b`` never appear: the constraints give the normal acceleration, and ``a'`` needs only ``J``,
+        which is why this form costs about half the embedded one (:mod:`manifold.steppers`).
         """
         lay, N = self.layout, self.N
-        M = [[hy.par[lay.map_index + r * N + s] for s in range(N)] for r in range(N)]
-        p = [hy.sum([M[r][s] * self.z[s] for s in range(N)] + [hy.par[lay.map_index + N * N + r]]) for r in range(N)]
-        s = factor.expression(p, [hy.par[lay.span_index + 1 + j] for j in range(factor.n_params)])
+        V = [hy.expression(f"V{r}") for r in range(N)]
+        M, M_inv = self._par_matrix(lay.map_index), self._par_matrix(lay.inverse_map_index)
+        c = self.tangent_coefficients(V)
+        JC = [_dot(row, c) for row in self.J]
+        v = [hy.sum([M[r][s] * JC[s] for s in range(N)]) for r in range(N)]
+        moves = {hy.par[j]: hy.par[offset + j] for j in range(n_constraint_pars)}
+        moves.update({xi: pi for xi, pi in zip(constrained.x, self.ambient_point())})
+        moves.update({vi: wi for vi, wi in zip(constrained.v, v)})
+        f = hy.subs([rhs for _, rhs in constrained.equations(False)[N:]], moves)
+        return (list(zip(self.a, c))
+                + [(V[r], hy.sum([M_inv[r][s] * f[s] for s in range(N)])) for r in range(N)])
+
+    def sundman_equations(self, factor: Any, equations: list[tuple]) -> list[tuple]:
+        """Geodesic ``equations`` in Sundman's time: ``dy/dtau = s(p) dy/dt`` and ``du/dtau = s(p) / (t_final - origin)``.
+
+        ``s`` is ``factor.expression`` (a :class:`manifold.sundman.TimeFactor`) of the ambient point
+        ``p = M z(a) + m`` (:meth:`ambient_point`), with the factor's parameters after :attr:`Layout.span_index`.
+        ``u = (t - origin) / (t_final - origin)`` is the segment's time (``origin``: its start, moved forward by
+        the stepper's restarts), in ``[0, 1]`` so that it does not widen heyoka's error norm (which is relative
+        to the state's largest component); the variable is the last of the state.
+        """
+        lay = self.layout
+        s = factor.expression(self.ambient_point(), [hy.par[lay.span_index + 1 + j] for j in range(factor.n_params)])
         u = hy.expression(SUNDMAN_TIME)
-        return [(lhs, s * rhs) for lhs, rhs in self.equations(form)] + [(u, s * hy.par[lay.span_index])]
+        return [(lhs, s * rhs) for lhs, rhs in equations] + [(u, s * hy.par[lay.span_index])]
 
     def events(self, backward: bool = False) -> list:
         """Terminal events: ``quality_m(a) - q_out`` (decreasing), then ``a_p -+ pi`` for periodic ``a_p``.

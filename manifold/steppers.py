@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
-from .precision import is_double, unit_roundoff
+from .precision import as_fp, is_double, unit_roundoff
 from .progress import step_callback
 from .solution import CallableDense, DenseOutput, PointDense, TaylorDense
 from .validation import check_bool, check_index, check_real
@@ -103,15 +103,24 @@ class TaylorStepper(Stepper):
         (n = 4: over 900 s), once per machine with heyoka's disk cache; the
         default ``opt_level`` 1 steps 13-16 % faster than 3 and compiles ~2x
         faster (``benchmarks/taylor_options.py``).
+    velocity
+        ``None`` (default): the state is ``(a, c)`` (the embedded or Christoffel
+        form).  A :class:`manifold.ambient_velocity.ConstrainedVelocity`: the
+        state is ``(a, J c)`` and constraints give the acceleration, without
+        the chart's second derivatives (the solver's ``form`` is then unused).
     """
 
     name = "taylor"
 
     def __init__(self, tol: float | None = None, *, compact_mode: bool = True,
-                 opt_level: int = DEFAULT_OPT_LEVEL) -> None:
+                 opt_level: int = DEFAULT_OPT_LEVEL, velocity: Any = None) -> None:
         self.tol = None if tol is None else check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
         self.compact_mode = check_bool("compact_mode", compact_mode)
         self.opt_level = check_index("opt_level", opt_level, 4)
+        if velocity is not None and not callable(getattr(velocity, "wrap", None)):  # no import: ambient_velocity imports this module
+            raise TypeError(f"velocity must be None or a manifold.ambient_velocity.ConstrainedVelocity, "
+                            f"got {type(velocity).__name__}")
+        self.velocity = velocity
 
     def relative_tolerance(self, fp_type: Any) -> float:
         # The default tolerance is chosen to be as accurate as the machine epsilon, and is held to that: judged by
@@ -119,13 +128,25 @@ class TaylorStepper(Stepper):
         return taylor_relative_tolerance(self.tol, fp_type)
 
     def __repr__(self) -> str:
-        return f"TaylorStepper(tol={self.tol!r}, compact_mode={self.compact_mode}, opt_level={self.opt_level})"
+        velocity = "" if self.velocity is None else f", velocity={self.velocity!r}"
+        return f"TaylorStepper(tol={self.tol!r}, compact_mode={self.compact_mode}, opt_level={self.opt_level}{velocity})"
 
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
                 switching: bool) -> Iterator[AdvanceFunction]:
-        with family.integrator(fp_type, self.tol, form, backward, self.compact_mode, self.opt_level) as ta:
-            yield lambda t, y, t_final, pars, dense: taylor_advance(ta, t, y, t_final, pars, dense, fp_type)
+        velocity = self.velocity
+        if velocity is not None:
+            velocity.check_dimension(family)
+        with family.integrator(fp_type, self.tol, form, backward, self.compact_mode, self.opt_level,
+                               velocity=velocity) as ta:
+            if velocity is None:
+                yield lambda t, y, t_final, pars, dense: taylor_advance(ta, t, y, t_final, pars, dense, fp_type)
+                return
+            # the constraint system's parameters after the chart's and the (unused in t) span's slot
+            tail = np.concatenate([as_fp([0.0], fp_type), velocity.parameters(fp_type)])
+            span = family.layout.span_index
+            yield velocity.wrap(lambda t, y, t_final, pars, dense: taylor_advance(
+                ta, t, y, t_final, np.concatenate([pars[:span], tail]), dense, fp_type), family, fp_type)
 
 
 def taylor_relative_tolerance(tol: float | None, fp_type: Any) -> float:

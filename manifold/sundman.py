@@ -213,7 +213,7 @@ class SundmanStepper(TaylorStepper):
     ----------
     factor
         The :class:`TimeFactor` (for a chain: :class:`linkage.time_factor.ChainTimeFactor`).
-    tol, compact_mode, opt_level
+    tol, compact_mode, opt_level, velocity
         As for :class:`~manifold.steppers.TaylorStepper`.
     """
 
@@ -226,14 +226,22 @@ class SundmanStepper(TaylorStepper):
         self.factor = factor
 
     def __repr__(self) -> str:
-        return f"SundmanStepper({self.factor!r}, tol={self.tol!r}, compact_mode={self.compact_mode}, opt_level={self.opt_level})"
+        velocity = "" if self.velocity is None else f", velocity={self.velocity!r}"
+        return (f"SundmanStepper({self.factor!r}, tol={self.tol!r}, compact_mode={self.compact_mode}, "
+                f"opt_level={self.opt_level}{velocity})")
 
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
                 switching: bool) -> Iterator[Any]:
+        velocity = self.velocity
         kappa = as_fp(self.factor.parameters(), fp_type)
+        if velocity is not None:
+            velocity.check_dimension(family)
+            kappa = np.concatenate([kappa, velocity.parameters(fp_type)])  # the constraint system's follow the factor's
         span_index = family.layout.span_index
         with family.integrator(fp_type, self.tol, form, backward, self.compact_mode, self.opt_level,
-                               factor=self.factor) as ta:
-            yield lambda t, y, t_final, pars, dense: sundman_advance(ta, t, y, t_final, pars, kappa, dense,
-                                                                     fp_type, span_index)
+                               factor=self.factor, velocity=velocity) as ta:
+            def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
+                return sundman_advance(ta, t, y, t_final, pars, kappa, dense, fp_type, span_index)
+
+            yield advance if velocity is None else velocity.wrap(advance, family, fp_type)

@@ -1,0 +1,151 @@
+r"""Chart geodesics with the ambient velocity as state: the chart gives the point, constraints the acceleration.
+
+The embedded form integrates ``(a, c)`` and needs the chart's second derivatives
+``h = z_ab c^a c^b`` along the velocity; pushing second-order jets through a chart
+formula costs about ten products of series per product of the formula (n = 4:
+491.5 full Taylor recursions per step, of which 57.5 are the formula itself).
+Where the image of the charts is also the zero set of constraints
+``C(x) = 0`` with the same constant metric ``K`` (a
+:class:`~manifold.constrained.ConstrainedSystem`), the normal acceleration is
+known without any chart: ``x'' = K^{-1} G^T lambda`` with
+``G K^{-1} G^T lambda = -(dG/dt) x'``.  So the state can be ``(a, V)`` with
+``V = J c`` the chart frame's ambient velocity:
+
+.. math::
+
+    a' = g^{-1} J^T W V, \qquad V' = M^{-1} f(M z(a) + m, M V),
+
+(``p = M z + m`` the chart's map, :meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`).
+Only the Jacobian ``J`` is needed: 278.5 full recursions at n = 4.  The point
+stays on the manifold by construction (it is the chart's), so no constraint
+stabilisation is needed; ``V`` may drift off the tangent space by rounding,
+which ``a'`` ignores (a K-orthogonal projection) and each segment's end
+removes (its state is read back as ``c = g^{-1} J^T W V``).
+
+Steppers take it as ``velocity=`` (:class:`~manifold.steppers.TaylorStepper`,
+:class:`~manifold.sundman.SundmanStepper`).  Segments start and end in
+``(a, c)`` as every stepper's do: :meth:`ConstrainedVelocity.wrap` converts
+on the way in (``V = J c``) and on the way out, dense output included, so the
+engine, switches, energy checks and solutions are unchanged.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .compiled import CompiledFamily
+from .constrained import ConstrainedPieces, ConstrainedSystem, compiled_constrained
+from .precision import as_fp
+from .solution import DenseOutput
+from .steppers import Advance, AdvanceFunction
+
+
+class ConstrainedVelocity:
+    """Integrate a chart family's geodesics in ``(a, V)``, the normal acceleration from ``system``.
+
+    Parameters
+    ----------
+    system
+        Constraints whose zero set, with the metric ``system.metric_matrix``, is
+        the manifold that the atlas charts (for a chain:
+        :class:`linkage.constraints.ChainSystem`); the caller vouches for that.
+        The solver's energy check, which reads the chart's metric, catches a
+        system of another manifold or metric.
+    """
+
+    def __init__(self, system: ConstrainedSystem) -> None:
+        if not isinstance(system, ConstrainedSystem):
+            raise TypeError(f"system must be a manifold.constrained.ConstrainedSystem, got {type(system).__name__}")
+        self.system = system
+        self._compiled = compiled_constrained(system)
+        self._values: dict[Any, NDArray] = {}  # fp_type -> parameter values
+
+    def __repr__(self) -> str:
+        return f"ConstrainedVelocity({self.system!r})"
+
+    @property
+    def key(self) -> Hashable:
+        """Identity of the compiled equations: the system's key and its metric's sparsity."""
+        return ("constrained-velocity", self.system.key, self._compiled.layout)
+
+    @property
+    def n_params(self) -> int:
+        """Number of the system's runtime parameters."""
+        return len(self.parameters(float))
+
+    def pieces(self, fp_type: Any) -> ConstrainedPieces:
+        """The system's symbolic equations in ``fp_type``."""
+        return self._compiled.pieces(fp_type)
+
+    def parameters(self, fp_type: Any) -> NDArray:
+        """The system's runtime parameter values in ``fp_type`` (no stabilisation: ``alpha = 0``)."""
+        if fp_type not in self._values:
+            self._values[fp_type] = self._compiled.layout.pack(self.system, 0.0, fp_type)
+        return self._values[fp_type]
+
+    def check_dimension(self, family: CompiledFamily) -> None:
+        """Refuse a system of another ambient dimension than the family's points."""
+        N = family.family.point_dim
+        if self.system.ambient_dim != N:
+            raise ValueError(f"velocity: the constraint system lives in R^{self.system.ambient_dim}, the charts of "
+                             f"{family.family!r} in R^{N}")
+
+    def wrap(self, advance: AdvanceFunction, family: CompiledFamily, fp_type: Any) -> AdvanceFunction:
+        """An :data:`~manifold.steppers.AdvanceFunction` in ``(a, c)`` around ``advance``, which integrates ``(a, V)``."""
+        states = _ChartStates(family, fp_type)
+
+        def run(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
+            adv = advance(t, states.ambient(y, pars), t_final, pars, dense)
+            out = None if adv.dense is None else _ChartDense(adv.dense, states, pars)
+            return Advance(adv.t, states.chart(adv.y[None, :], pars)[0], adv.n_steps, adv.event, adv.step_times,
+                           states.chart(adv.step_states, pars), out, adv.failure)
+
+        return run
+
+
+class _ChartStates:
+    """``(a, c) <-> (a, V)`` on one chart, through the family's compiled transfer ``(a, c, u) -> (z, J c, g^{-1} J^T W u, E)``."""
+
+    def __init__(self, family: CompiledFamily, fp_type: Any) -> None:
+        self.cf, self.fp = family.transfer(fp_type), fp_type
+        self.k, self.N = family.family.dim, family.family.point_dim
+
+    def _eval(self, a: NDArray, c: NDArray, u: NDArray, pars: NDArray) -> NDArray:
+        args = np.ascontiguousarray(as_fp(np.concatenate([a, c, u]), self.fp))
+        return self.cf(args, pars=np.repeat(pars[: self.cf.nparams, None], args.shape[1], axis=1))
+
+    def ambient(self, y: NDArray, pars: NDArray) -> NDArray:
+        """``(a, J c)`` of one state ``(a, c)``."""
+        k, N = self.k, self.N
+        out = self._eval(y[:k, None], y[k:, None], np.zeros((N, 1)), pars)
+        return np.concatenate([y[:k], out[N : 2 * N, 0]])
+
+    def chart(self, states: NDArray, pars: NDArray) -> NDArray:
+        """``(a, c)`` of states ``(a, V)`` stacked as rows ``(m, k + N)``: ``c = g^{-1} J^T W V``, refined once by
+        the residual ``V - J c`` (the normal equations lose ``cond(g)``, :meth:`~manifold.compiled.ChartNumerics.coefficients`)."""
+        k, N = self.k, self.N
+        a, V = states[:, :k].T, states[:, k : k + N].T
+        zeros_c, zeros_u = np.zeros((k, a.shape[1])), np.zeros((N, a.shape[1]))
+        c = self._eval(a, zeros_c, V, pars)[2 * N : 2 * N + k]
+        Jc = self._eval(a, c, zeros_u, pars)[N : 2 * N]
+        c = c + self._eval(a, zeros_c, V - Jc, pars)[2 * N : 2 * N + k]
+        return np.concatenate([a, c]).T
+
+
+class _ChartDense:
+    """Dense output of an ``(a, V)`` segment, read as ``(a, c)``."""
+
+    def __init__(self, inner: DenseOutput, states: _ChartStates, pars: NDArray) -> None:
+        self.inner, self.states, self.pars = inner, states, pars
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held: the inner output's."""
+        return self.inner.nbytes
+
+    def __call__(self, ts: NDArray) -> NDArray:
+        return self.states.chart(self.inner(ts), self.pars)

@@ -1,0 +1,104 @@
+"""The chart path with the ambient velocity as state (:mod:`manifold.ambient_velocity`).
+
+Changing the state from ``(a, c)`` to ``(a, J c)``, with the acceleration from the
+rod constraints instead of the chart's second derivatives, must not change the
+motion: the same geodesic, switches and energy as the embedded form, in ``t`` and
+in Sundman's time, for every mass model, chains of any lengths (charts whose base
+is a link), backward, and in real128.
+"""
+
+from __future__ import annotations
+
+import heyoka as hy
+import numpy as np
+import pytest
+
+from linkage import Chain
+from linkage.constraints import ChainSystem
+from linkage.motion import free_motion
+from linkage.time_factor import ChainTimeFactor
+from manifold import solve_chart_exp_ode
+from manifold.ambient_velocity import ConstrainedVelocity
+from manifold.steppers import TaylorStepper
+from manifold.sundman import SundmanStepper
+
+from .conftest import unit_speed_start
+
+
+def _start(chain: Chain, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """A generic start of unit kinetic energy, in the chain's best chart."""
+    rng = np.random.default_rng(seed)
+    atlas = chain.atlas()
+    p0 = atlas.get_point(0, rng.uniform(-1.0, 1.0, chain.n - 2))
+    i = atlas.get_chart_index(p0)
+    v0 = atlas.charts[i].tangent_vector(atlas.get_parameters(i, p0), rng.normal(size=chain.n - 2))
+    return p0, v0 / np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))
+
+
+@pytest.mark.parametrize("sundman", [False, True])
+@pytest.mark.parametrize("lengths, L, masses, densities, T", [
+    (3, 1.6, 1.0, 0.0, 12.0), (4, 2.7, 1.0, 0.0, 15.0), (4, 3.5, [0.1, 1.0, 10.0], 0.0, -12.0),
+    (5, 3.2, [0.3, 2.0, 1.0, 0.5], 0.0, 10.0), (5, 3.4, 1.0, 0.2, 10.0), (6, 4.9, 1.0, 0.0, 8.0),
+    ((1.0, 2.0, 1.5, 2.5, 1.2), 7.0, 1.0, 0.0, 10.0),  # L dominant, chains of any lengths
+    ((3.0, 1.0, 1.2, 0.9), 0.3, [1.0, 0.5, 2.0], 0.0, 10.0),  # the link l_1 dominant: charts on a link base
+])
+def test_the_ambient_velocity_gives_the_same_motion_switches_and_energy(lengths, L, masses, densities, T, sundman):
+    chain = Chain(lengths, L, hinge_masses=masses, rod_densities=densities)
+    p0, v0 = _start(chain, chain.n)
+    factor = [ChainTimeFactor(chain)] if sundman else []
+    kind = SundmanStepper if sundman else TaylorStepper
+    plain = solve_chart_exp_ode(chain.metric(), p0, v0, T, stepper=kind(*factor))
+    ambient = solve_chart_exp_ode(chain.metric(), p0, v0, T,
+                                  stepper=kind(*factor, velocity=ConstrainedVelocity(ChainSystem(chain))))
+    assert ambient.t_reached == T and ambient.status == plain.status
+    ts = np.linspace(0.0, T, 51)
+    assert np.max(np.abs(ambient(ts)[0] - plain(ts)[0])) <= 1e-10
+    assert np.max(np.abs(ambient(ts)[1] - plain(ts)[1])) <= 1e-10
+    assert np.max(np.abs(ambient.end_state()[1] - plain.end_state()[1])) <= 1e-10
+    assert [(s.from_chart, s.to_chart) for s in ambient.switches] == [(s.from_chart, s.to_chart) for s in plain.switches]
+    assert np.allclose([s.time for s in ambient.switches], [s.time for s in plain.switches], atol=1e-9, rtol=0)
+    E = np.asarray(ambient.energies, dtype=float)
+    assert np.max(np.abs(E / E[0] - 1)) <= 1e-13
+    i, a, c = ambient.parameters(T / 3)  # chart coordinates on demand, as (a, c)
+    assert (i, *np.round([a, c], 9).ravel()) == (plain.parameters(T / 3)[0], *np.round(plain.parameters(T / 3)[1:], 9).ravel())
+
+
+def test_free_motion_closes_and_agrees_with_the_hinge_method():
+    """Through the chain API, backward and forward: closure along the run, and the hinge method's motion."""
+    chain = Chain(5, 3.3, hinge_masses=[1.0, 0.4, 2.0, 1.0])
+    h0, v0 = unit_speed_start(chain, [0.3, -0.5, 1.1], [0.4, 1.0, -0.7])
+    stepper = SundmanStepper(ChainTimeFactor(chain), velocity=ConstrainedVelocity(ChainSystem(chain)))
+    for T in (10.0, -10.0):
+        charts = free_motion(chain, h0, v0, T, stepper=stepper)
+        hinges = free_motion(chain, h0, v0, T, method="hinges")
+        ts = np.linspace(0.0, T, 21)
+        assert np.max(np.abs(charts(ts)[0] - hinges(ts)[0])) <= 1e-10
+        assert charts.closure_residuals.max() <= 1e-13
+        assert charts.relative_energy_error <= 1e-13
+
+
+def test_real128_agrees_with_the_embedded_form_to_its_precision():
+    chain = Chain(4, 2.6)
+    h0, v0 = unit_speed_start(chain, [0.4, -0.3], [0.7, 0.5])
+    p0, w0 = chain.to_point(h0), chain.to_point(v0)
+    factor = ChainTimeFactor(chain)
+    plain = solve_chart_exp_ode(chain.metric(), p0, w0, 1.5, fp_type=hy.real128, stepper=SundmanStepper(factor))
+    ambient = solve_chart_exp_ode(chain.metric(), p0, w0, 1.5, fp_type=hy.real128,
+                                  stepper=SundmanStepper(factor, velocity=ConstrainedVelocity(ChainSystem(chain))))
+    ts = np.linspace(0.0, 1.5, 7)
+    assert float(np.max(np.abs(ambient(ts)[0] - plain(ts)[0]))) <= 1e-31
+    assert float(np.max(np.abs(ambient(ts)[1] - plain(ts)[1]))) <= 1e-31
+    E = ambient.energies
+    assert max(abs(float(e / E[0] - 1)) for e in E) <= 1e-31
+
+
+def test_a_bad_velocity_is_refused_by_name():
+    with pytest.raises(TypeError, match="velocity must be None or a manifold.ambient_velocity.ConstrainedVelocity"):
+        TaylorStepper(velocity="hinges")
+    with pytest.raises(TypeError, match="system must be a manifold.constrained.ConstrainedSystem"):
+        ConstrainedVelocity(Chain(4, 2.5))  # type: ignore[arg-type]
+    chain = Chain(4, 2.5)
+    p0, v0 = _start(chain, 1)
+    other = ConstrainedVelocity(ChainSystem(Chain(5, 3.5)))
+    with pytest.raises(ValueError, match=r"velocity: the constraint system lives in R\^8, the charts .* in R\^6"):
+        solve_chart_exp_ode(chain.metric(), p0, v0, 1.0, stepper=TaylorStepper(velocity=other))
