@@ -102,3 +102,21 @@ def test_a_bad_velocity_is_refused_by_name():
     other = ConstrainedVelocity(ChainSystem(Chain(5, 3.5)))
     with pytest.raises(ValueError, match=r"velocity: the constraint system lives in R\^8, the charts .* in R\^6"):
         solve_chart_exp_ode(chain.metric(), p0, v0, 1.0, stepper=TaylorStepper(velocity=other))
+
+
+@pytest.mark.parametrize("densities, ambient", [(0.0, True), (0.2, False)])
+def test_free_motion_uses_the_ambient_velocity_by_default_except_with_rod_densities(densities, ambient):
+    """The default chart stepper is Sundman's time with the state ``(a, J c)``; with rod densities (generic multiplier
+    pivots: digits lost near the top of the range) and with a ``form`` asked for, the state ``(a, c)``."""
+    chain = Chain(4, 2.7, hinge_masses=[1.0, 0.5, 2.0], rod_densities=densities)
+    h0, v0 = unit_speed_start(chain, [0.2, 0.3], [0.5, -0.9])
+    velocity = ConstrainedVelocity(ChainSystem(chain))
+    default = free_motion(chain, h0, v0, 3.0)
+    explicit = {state: free_motion(chain, h0, v0, 3.0, stepper=SundmanStepper(ChainTimeFactor(chain), velocity=vel))
+                for state, vel in (("(a, J c)", velocity), ("(a, c)", None))}
+    chosen = "(a, J c)" if ambient else "(a, c)"
+    other = "(a, c)" if ambient else "(a, J c)"
+    assert np.array_equal(default(3.0)[1], explicit[chosen](3.0)[1])
+    assert not np.array_equal(default(3.0)[1], explicit[other](3.0)[1])
+    embedded = free_motion(chain, h0, v0, 3.0, form="embedded")
+    assert np.array_equal(embedded(3.0)[1], explicit["(a, c)"](3.0)[1])

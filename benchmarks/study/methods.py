@@ -22,6 +22,7 @@ from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
 from manifold import GeodesicIntegrationError, ScipyStepper, compiled, solve_chart_exp_ode
+from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.constrained import compiled_constrained
 from manifold.sundman import SundmanStepper
 
@@ -59,7 +60,7 @@ def from_solution(
     return Run(name, knob, wall, ts, h, chain.kinetic_energy(v), failed, sol.n_steps)
 
 
-def _warm_up(chain: Chain, tol=None, scipy: bool = False, factor=None) -> None:
+def _warm_up(chain: Chain, tol=None, scipy: bool = False, factor=None, velocity=None) -> None:
     """Compile (or fetch from the caches) what a method needs, outside its timing."""
     family = compiled(chain.atlas().charts[0].family)
     family.transfer(float)
@@ -67,7 +68,7 @@ def _warm_up(chain: Chain, tol=None, scipy: bool = False, factor=None) -> None:
         family.acceleration(float)
         family.quality(float)
     else:
-        with family.integrator(float, tol, factor=factor):
+        with family.integrator(float, tol, factor=factor, velocity=velocity):
             pass
 
 
@@ -79,12 +80,22 @@ def atlas_taylor(chain: Chain, p0, v0, T, ts, tol) -> Run:
 
 
 def atlas_sundman(chain: Chain, p0, v0, T, ts, tol) -> Run:
-    """Method 1 in Sundman's time ``dt = det M dtau`` (:class:`manifold.sundman.SundmanStepper`), the chart path's default."""
+    """Method 1 in Sundman's time ``dt = det M dtau`` (:class:`manifold.sundman.SundmanStepper`), the state ``(a, c)``."""
     factor = ChainTimeFactor(chain)
     _warm_up(chain, tol, factor=factor)
     stepper = SundmanStepper(factor, tol=tol)
     sol, wall = _timed(lambda: solve_chart_exp_ode(chain.metric(), p0, v0, T, stepper=stepper))
     return from_solution("atlas Taylor, Sundman time (ours)", tol, chain, sol, wall, ts)
+
+
+def atlas_ambient(chain: Chain, p0, v0, T, ts, tol) -> Run:
+    """Method 1 in Sundman's time with the ambient velocity as state (:mod:`manifold.ambient_velocity`):
+    the chart gives the point, the rod constraints the acceleration; the chart path's default without rod densities."""
+    factor, velocity = ChainTimeFactor(chain), ConstrainedVelocity(ChainSystem(chain))
+    _warm_up(chain, tol, factor=factor, velocity=velocity)
+    stepper = SundmanStepper(factor, tol=tol, velocity=velocity)
+    sol, wall = _timed(lambda: solve_chart_exp_ode(chain.metric(), p0, v0, T, stepper=stepper))
+    return from_solution("atlas Taylor, ambient velocity (ours)", tol, chain, sol, wall, ts)
 
 
 def single_chart_taylor(chain: Chain, p0, v0, T, ts, tol, chart: int = 0) -> Run:
