@@ -14,15 +14,15 @@ known without any chart: ``x'' = K^{-1} G^T lambda`` with
 
 .. math::
 
-    a' = g^{-1} J^T W V, \qquad V' = M^{-1} f(M z(a) + m, M V),
+    a' = g^{-1} J^T W V, \qquad V' = M^{-1} f(M z(a) + m, M J a'),
 
 (``p = M z + m`` the chart's map, :meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`).
 Only the Jacobian ``J`` is needed: 307 full recursions at n = 4 with the switch
 events, against 511 (float64; 1,850 against 2,616 at n = 8).  The point
 stays on the manifold by construction (it is the chart's), so no constraint
 stabilisation is needed; ``V`` may drift off the tangent space by rounding,
-which ``a'`` ignores (a K-orthogonal projection) and each segment's end
-removes (its state is read back as ``c = g^{-1} J^T W V``).
+which ``a'`` and ``f``'s velocity ``J a'`` ignore (a K-orthogonal projection)
+and each segment's end removes (its state is read back as ``c = g^{-1} J^T W V``).
 
 Steppers take it as ``velocity=`` (:class:`~manifold.steppers.TaylorStepper`,
 :class:`~manifold.sundman.SundmanStepper`).  Segments start and end in
@@ -56,7 +56,8 @@ class ConstrainedVelocity:
         the manifold that the atlas charts (for a chain:
         :class:`linkage.constraints.ChainSystem`); the caller vouches for that.
         The solver's energy check, which reads the chart's metric, catches a
-        system of another manifold or metric.
+        system of another manifold or metric (a base ``L`` of 2.6 against the
+        atlas's 2.7: energy error 0.10; 2.7001: 1.2e-4, both refused).
     """
 
     def __init__(self, system: ConstrainedSystem) -> None:
@@ -89,12 +90,23 @@ class ConstrainedVelocity:
             self._values[fp_type] = self._compiled.layout.pack(self.system, 0.0, fp_type)
         return self._values[fp_type]
 
-    def check_dimension(self, family: CompiledFamily) -> None:
-        """Refuse a system of another ambient dimension than the family's points."""
+    def __getstate__(self) -> dict:
+        """Pickle the system only (for ensembles on other processes): the compiled store holds a lock."""
+        return {"system": self.system}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["system"])  # type: ignore[misc]
+
+    def check(self, family: CompiledFamily, form: str) -> None:
+        """Refuse a system of another ambient dimension than the family's points, and a ``form`` other than the
+        default ``"embedded"`` (the forms are those of the state ``(a, c)``; this state has none)."""
         N = family.family.point_dim
         if self.system.ambient_dim != N:
             raise ValueError(f"velocity: the constraint system lives in R^{self.system.ambient_dim}, the charts of "
                              f"{family.family!r} in R^{N}")
+        if form != "embedded":
+            raise ValueError(f"form={form!r} is a form of the state (a, c); a stepper with velocity= integrates "
+                             f"(a, J c) and has none: drop velocity= or form=")
 
     def wrap(self, advance: AdvanceFunction, family: CompiledFamily, fp_type: Any) -> AdvanceFunction:
         """An :data:`~manifold.steppers.AdvanceFunction` in ``(a, c)`` around ``advance``, which integrates ``(a, V)``."""
@@ -110,7 +122,10 @@ class ConstrainedVelocity:
 
 
 class _ChartStates:
-    """``(a, c) <-> (a, V)`` on one chart, through the family's compiled transfer ``(a, c, u) -> (z, J c, g^{-1} J^T W u, E)``."""
+    """``(a, c) <-> (a, V)`` on one chart, through the family's compiled transfer ``(a, c, u) -> (z, J c, g^{-1} J^T W u, E)``.
+
+    Each segment starts from ``(a, c)`` and converts once; switches go through the ambient velocity anyway.
+    """
 
     def __init__(self, family: CompiledFamily, fp_type: Any) -> None:
         self.cf, self.fp = family.transfer(fp_type), fp_type
@@ -128,7 +143,13 @@ class _ChartStates:
 
     def chart(self, states: NDArray, pars: NDArray) -> NDArray:
         """``(a, c)`` of states ``(a, V)`` stacked as rows ``(m, k + N)``: ``c = g^{-1} J^T W V``, refined once by
-        the residual ``V - J c`` (the normal equations lose ``cond(g)``, :meth:`~manifold.compiled.ChartNumerics.coefficients`)."""
+        the residual ``V - J c``.
+
+        Numerical trap: the normal equations carry ``V``'s rounding back with ``cond(J)`` (a review measured
+        the round trip ``c -> V -> c`` toward a pole: 5.1e-15, 2.6e-12, 3.3e-10 at ``cond(J)`` 14, 1.2e4, 1.2e6;
+        refined 2.6e-15, 1.3e-12, 1.3e-10), and the energies recorded from these states see it: n = 4, T = 20,
+        1.7e-14 unrefined against 3.7e-15 refined (``tests/test_ambient_velocity.py``).
+        """
         k, N = self.k, self.N
         a, V = states[:, :k].T, states[:, k : k + N].T
         zeros_c, zeros_u = np.zeros((k, a.shape[1])), np.zeros((N, a.shape[1]))

@@ -167,14 +167,16 @@ class CompiledFamily(ArtefactStore):
         with the constraint system's parameters at :meth:`~manifold.geodesic_system.Layout.constraint_index`.
         """
         tol = default_tolerance(fp_type) if tol is None else tol
-        key = ("integrator", fp_type, tol, form, backward, compact_mode, opt_level,
+        key = ("integrator", fp_type, tol, form if velocity is None else None, backward, compact_mode, opt_level,
                None if factor is None else factor.key, None if velocity is None else velocity.key)
 
         def build() -> Any:
             P = self.pieces(fp_type)
             kw = {} if tol is None else {"tol": fp_type(tol)}
-            equations, events = P.equations(form), P.events(backward)
-            if velocity is not None:
+            events = P.events(backward)
+            if velocity is None:
+                equations = P.equations(form)
+            else:
                 offset = self.layout.constraint_index(0 if factor is None else factor.n_params)
                 equations = P.ambient_velocity_equations(velocity.pieces(fp_type), velocity.n_params, offset)
             if factor is not None:

@@ -61,7 +61,8 @@ class Layout:
     @property
     def map_index(self) -> int:
         """Start of the chart's linear map ``M`` (``N x N``, row-major) in ``pars``, then its offset ``m``
-        (``N``): the ambient point is ``p = M z + m``.  Only Sundman's time reads them (:mod:`manifold.sundman`)."""
+        (``N``): the ambient point is ``p = M z + m``.  Only Sundman's time and the ambient-velocity equations
+        read them (:meth:`SymbolicPieces.ambient_point`)."""
         return self.q_out_index + 1
 
     @property
@@ -218,14 +219,15 @@ class SymbolicPieces:
 
         .. math::
 
-            a' = g^{-1} J^T W V, \qquad V' = M^{-1} f(M z(a) + m, M V),
+            a' = g^{-1} J^T W V, \qquad V' = M^{-1} f(M z(a) + m, M J a'),
 
         with ``f(x, v)`` the constrained acceleration ``K^{-1} G^T M_G^{-1} (-(dG/dt) v)`` of a
         :class:`~manifold.constrained.ConstrainedSystem` whose zero set is the family's image (its ``x``, ``v`` in
         the ambient frame; ``constrained`` its :class:`~manifold.constrained.ConstrainedPieces`, whose
         ``n_constraint_pars`` parameters move to ``par[offset ..]``).  The chart's second derivatives
         ``z_ab c^a c^b`` never appear: the constraints give the normal acceleration, and ``a'`` needs only ``J``,
-        which is why this form costs about half the embedded one (:mod:`manifold.steppers`).
+        which is why a step costs 0.6-0.7x the embedded one's (:mod:`manifold.ambient_velocity`).  ``f`` gets
+        the tangent part ``J a'`` of ``V``: ``V`` itself would let rounding's normal drift feed back.
         """
         lay, N = self.layout, self.N
         V = [hy.expression(f"V{r}") for r in range(N)]

@@ -117,10 +117,14 @@ class TaylorStepper(Stepper):
         self.tol = None if tol is None else check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
         self.compact_mode = check_bool("compact_mode", compact_mode)
         self.opt_level = check_index("opt_level", opt_level, 4)
-        if velocity is not None and not callable(getattr(velocity, "wrap", None)):  # no import: ambient_velocity imports this module
-            raise TypeError(f"velocity must be None or a manifold.ambient_velocity.ConstrainedVelocity, "
-                            f"got {type(velocity).__name__}")
+        # duck-typed, since manifold.ambient_velocity imports this module
+        if velocity is not None and (isinstance(velocity, type) or not all(
+                hasattr(velocity, attr) for attr in ("wrap", "check", "key", "pieces", "n_params", "parameters"))):
+            raise TypeError(f"velocity must be None or a manifold.ambient_velocity.ConstrainedVelocity instance, "
+                            f"got {velocity!r}")
         self.velocity = velocity
+        if velocity is not None:
+            self.name = f"{type(self).name} (a, J c)"  # the solution's method says which state was integrated
 
     def relative_tolerance(self, fp_type: Any) -> float:
         # The default tolerance is chosen to be as accurate as the machine epsilon, and is held to that: judged by
@@ -136,7 +140,7 @@ class TaylorStepper(Stepper):
                 switching: bool) -> Iterator[AdvanceFunction]:
         velocity = self.velocity
         if velocity is not None:
-            velocity.check_dimension(family)
+            velocity.check(family, form)
         with family.integrator(fp_type, self.tol, form, backward, self.compact_mode, self.opt_level,
                                velocity=velocity) as ta:
             if velocity is None:

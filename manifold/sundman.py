@@ -236,7 +236,7 @@ class SundmanStepper(TaylorStepper):
         velocity = self.velocity
         kappa = as_fp(self.factor.parameters(), fp_type)
         if velocity is not None:
-            velocity.check_dimension(family)
+            velocity.check(family, form)
             kappa = np.concatenate([kappa, velocity.parameters(fp_type)])  # the constraint system's follow the factor's
         span_index = family.layout.span_index
         with family.integrator(fp_type, self.tol, form, backward, self.compact_mode, self.opt_level,

@@ -16,8 +16,10 @@ from hypothesis import strategies as st
 
 import manifold.progress
 from linkage import Chain
+from linkage.constraints import ChainSystem
 from linkage.time_factor import ChainTimeFactor, multiplier_determinant
 from manifold import solve_chart_exp_ode
+from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.progress import ProgressUpdate
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper
@@ -154,8 +156,9 @@ def test_a_segment_that_starts_at_t_final_is_empty_not_a_failure():
                                                                   chain.to_point(v0), 0.0).end_state()[0])
 
 
+@pytest.mark.parametrize("ambient", [False, True])
 @pytest.mark.parametrize("sundman", [False, True])
-def test_a_run_that_ends_on_a_switch_or_at_its_start_has_dense_output_there(sundman):
+def test_a_run_that_ends_on_a_switch_or_at_its_start_has_dense_output_there(sundman, ambient):
     """A switch that lands on ``t_final`` leaves a last segment without steps (so does ``t_final = 0``); its
     continuous output is its one state.  Ending the run at each switch time and its neighbours finds such
     runs (2 in ``tau``, 1 in ``t`` here: the test asks for at least one); there the motion equals the long run's."""
@@ -164,7 +167,8 @@ def test_a_run_that_ends_on_a_switch_or_at_its_start_has_dense_output_there(sund
     p0 = atlas.get_point(0, np.array([0.3, 1.0]))
     i = atlas.get_chart_index(p0)
     w0 = atlas.charts[i].tangent_vector(atlas.get_parameters(i, p0), np.array([1.0, -0.5]))
-    stepper = SundmanStepper(ChainTimeFactor(chain)) if sundman else TaylorStepper()
+    velocity = ConstrainedVelocity(ChainSystem(chain)) if ambient else None
+    stepper = SundmanStepper(ChainTimeFactor(chain), velocity=velocity) if sundman else TaylorStepper(velocity=velocity)
     long = solve_chart_exp_ode(chain.metric(), p0, w0, 20.0, stepper=stepper)
     assert long.n_switches >= 3
     empty = 0
