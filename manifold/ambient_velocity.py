@@ -39,9 +39,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .compiled import CompiledFamily
+from .compiled import CompiledFamily, Transfer
 from .constrained import ConstrainedPieces, ConstrainedSystem, compiled_constrained
-from .precision import as_fp
 from .solution import DenseOutput
 from .steppers import Advance, AdvanceFunction
 
@@ -109,61 +108,42 @@ class ConstrainedVelocity:
                              f"(a, J c) and has none: drop velocity= or form=")
 
     def wrap(self, advance: AdvanceFunction, family: CompiledFamily, fp_type: Any) -> AdvanceFunction:
-        """An :data:`~manifold.steppers.AdvanceFunction` in ``(a, c)`` around ``advance``, which integrates ``(a, V)``."""
-        states = _ChartStates(family, fp_type)
+        """An :data:`~manifold.steppers.AdvanceFunction` in ``(a, c)`` around ``advance``, which integrates ``(a, V)``.
+
+        Each segment starts from ``(a, c)`` and converts once (switches go through the ambient velocity anyway).
+        """
+        k, N = family.family.dim, family.family.point_dim
 
         def run(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
-            adv = advance(t, states.ambient(y, pars), t_final, pars, dense)
-            out = None if adv.dense is None else _ChartDense(adv.dense, states, pars)
-            return Advance(adv.t, states.chart(adv.y[None, :], pars)[0], adv.n_steps, adv.event, adv.step_times,
-                           states.chart(adv.step_states, pars), out, adv.failure)
+            transfer = Transfer(family, fp_type, pars)
+            ambient = np.concatenate([y[:k], transfer(y[:k, None], y[k:, None], np.zeros((N, 1)))[N : 2 * N, 0]])
+            adv = advance(t, ambient, t_final, pars, dense)
+            out = None if adv.dense is None else _ChartDense(adv.dense, transfer)
+            return Advance(adv.t, _chart_states(adv.y[None, :], transfer)[0], adv.n_steps, adv.event, adv.step_times,
+                           _chart_states(adv.step_states, transfer), out, adv.failure)
 
         return run
 
 
-class _ChartStates:
-    """``(a, c) <-> (a, V)`` on one chart, through the family's compiled transfer ``(a, c, u) -> (z, J c, g^{-1} J^T W u, E)``.
+def _chart_states(states: NDArray, transfer: Transfer) -> NDArray:
+    """``(a, c)`` of states ``(a, V)`` stacked as rows ``(m, k + N)``: ``c = g^{-1} J^T W V``, refined once by the
+    residual ``V - J c`` (:meth:`~manifold.compiled.Transfer.coefficients`).
 
-    Each segment starts from ``(a, c)`` and converts once; switches go through the ambient velocity anyway.
+    Numerical trap: the normal equations carry ``V``'s rounding back with ``cond(J)`` (a review measured the round
+    trip ``c -> V -> c`` toward a pole: 5.1e-15, 2.6e-12, 3.3e-10 at ``cond(J)`` 14, 1.2e4, 1.2e6; refined 2.6e-15,
+    1.3e-12, 1.3e-10), and the energies recorded from these states see it: n = 4, T = 20, 1.7e-14 unrefined
+    against 3.7e-15 refined (``tests/test_ambient_velocity.py``).
     """
-
-    def __init__(self, family: CompiledFamily, fp_type: Any) -> None:
-        self.cf, self.fp = family.transfer(fp_type), fp_type
-        self.k, self.N = family.family.dim, family.family.point_dim
-
-    def _eval(self, a: NDArray, c: NDArray, u: NDArray, pars: NDArray) -> NDArray:
-        args = np.ascontiguousarray(as_fp(np.concatenate([a, c, u]), self.fp))
-        return self.cf(args, pars=np.repeat(pars[: self.cf.nparams, None], args.shape[1], axis=1))
-
-    def ambient(self, y: NDArray, pars: NDArray) -> NDArray:
-        """``(a, J c)`` of one state ``(a, c)``."""
-        k, N = self.k, self.N
-        out = self._eval(y[:k, None], y[k:, None], np.zeros((N, 1)), pars)
-        return np.concatenate([y[:k], out[N : 2 * N, 0]])
-
-    def chart(self, states: NDArray, pars: NDArray) -> NDArray:
-        """``(a, c)`` of states ``(a, V)`` stacked as rows ``(m, k + N)``: ``c = g^{-1} J^T W V``, refined once by
-        the residual ``V - J c``.
-
-        Numerical trap: the normal equations carry ``V``'s rounding back with ``cond(J)`` (a review measured
-        the round trip ``c -> V -> c`` toward a pole: 5.1e-15, 2.6e-12, 3.3e-10 at ``cond(J)`` 14, 1.2e4, 1.2e6;
-        refined 2.6e-15, 1.3e-12, 1.3e-10), and the energies recorded from these states see it: n = 4, T = 20,
-        1.7e-14 unrefined against 3.7e-15 refined (``tests/test_ambient_velocity.py``).
-        """
-        k, N = self.k, self.N
-        a, V = states[:, :k].T, states[:, k : k + N].T
-        zeros_c, zeros_u = np.zeros((k, a.shape[1])), np.zeros((N, a.shape[1]))
-        c = self._eval(a, zeros_c, V, pars)[2 * N : 2 * N + k]
-        Jc = self._eval(a, c, zeros_u, pars)[N : 2 * N]
-        c = c + self._eval(a, zeros_c, V - Jc, pars)[2 * N : 2 * N + k]
-        return np.concatenate([a, c]).T
+    k, N = transfer.k, transfer.N
+    a = states[:, :k].T
+    return np.concatenate([a, transfer.coefficients(a, states[:, k : k + N].T)]).T
 
 
 class _ChartDense:
     """Dense output of an ``(a, V)`` segment, read as ``(a, c)``."""
 
-    def __init__(self, inner: DenseOutput, states: _ChartStates, pars: NDArray) -> None:
-        self.inner, self.states, self.pars = inner, states, pars
+    def __init__(self, inner: DenseOutput, transfer: Transfer) -> None:
+        self.inner, self.transfer = inner, transfer
 
     @property
     def nbytes(self) -> int:
@@ -171,4 +151,4 @@ class _ChartDense:
         return self.inner.nbytes
 
     def __call__(self, ts: NDArray) -> NDArray:
-        return self.states.chart(self.inner(ts), self.pars)
+        return _chart_states(self.inner(ts), self.transfer)

@@ -261,6 +261,35 @@ def compiled(family: ChartFamily) -> CompiledFamily:
         return _REGISTRY[key]
 
 
+class Transfer:
+    """The family's compiled transfer ``(a, c, u) -> (z, J c, g^{-1} J^T W u, E)`` at one chart's parameters
+    ``pars``, in the working precision, batched over columns (``a``, ``c`` of shape ``(k, B)``, ``u`` ``(N, B)``)."""
+
+    def __init__(self, family: CompiledFamily, fp_type: Any, pars: NDArray) -> None:
+        self.cf, self.fp = family.transfer(fp_type), fp_type
+        self.k, self.N = family.family.dim, family.family.point_dim
+        self.pars = pars[: self.cf.nparams, None]  # theta and B: the transfer reads no q_out, map or span
+
+    def __call__(self, a: NDArray, c: NDArray, u: NDArray) -> NDArray:
+        """The ``N + N + k + 1`` outputs (rows) at each column."""
+        args = np.ascontiguousarray(as_fp(np.concatenate([a, c, u]), self.fp))
+        return self.cf(args, pars=np.repeat(self.pars, args.shape[1], axis=1))
+
+    def coefficients(self, a: NDArray, u: NDArray) -> NDArray:
+        """``c = g^{-1} J^T W u`` (shape ``(k, B)``): the W-orthogonal tangent coefficients of chart-frame vectors ``u``.
+
+        The normal equations lose ``cond(g)`` (large for strongly unequal
+        masses); one step of iterative refinement, ``c += g^{-1} J^T W (u - J c)``
+        with the residual in the working precision, brings ``J c`` back to ``u``
+        to rounding wherever ``cond(g) eps < 1``.
+        """
+        k, N = self.k, self.N
+        zeros_c = np.zeros((k, a.shape[1]))
+        c = self(a, zeros_c, u)[2 * N : 2 * N + k]
+        Jc = self(a, c, np.zeros((N, a.shape[1])))[N : 2 * N]
+        return c + self(a, zeros_c, u - Jc)[2 * N : 2 * N + k]
+
+
 class ChartNumerics:
     """One chart ``p = M z(a; theta) + m`` in the working precision, for a given ambient metric.
 
@@ -293,13 +322,7 @@ class ChartNumerics:
                                     self.M.ravel(), self.m, self.M_inv.ravel()])
         for x in (self.M, self.M_inv, self.m, self.pars):  # shared by every solve on the chart (SymbolicChart.numerics)
             x.flags.writeable = False
-        self._cf = self.compiled.transfer(fp_type)
-
-    def _eval(self, a: NDArray, c: NDArray, u: NDArray) -> NDArray:
-        """Batched transfer function: ``a``, ``c`` of shape ``(k, B)``, ``u`` of shape ``(N, B)``."""
-        args = as_fp(np.concatenate([a, c, u]), self.fp)
-        pars = self.pars[: self._cf.nparams, None]  # the transfer function does not use q_out
-        return self._cf(args, pars=np.repeat(pars, args.shape[1], axis=1))
+        self._eval = Transfer(self.compiled, fp_type, self.pars)
 
     def point_velocity_energy(self, a: NDArray, c: NDArray) -> tuple[NDArray, NDArray, NDArray]:
         """``p = M z(a) + m`` and ``v = M J c`` (shape ``(B, N)``) and ``E`` (``(B,)``) for ``a, c`` of shape ``(k, B)``."""
@@ -313,17 +336,9 @@ class ChartNumerics:
         return p, v
 
     def coefficients(self, a: NDArray, v: NDArray) -> NDArray:
-        """``c = g^{-1} J^T K v``: the K-orthogonal tangent coefficients of the embedded ``v``.
-
-        The normal equations lose ``cond(g)`` (large for strongly unequal
-        masses); one step of iterative refinement, ``c += g^{-1} J^T K (v - J c)``
-        with the residual in the working precision, brings ``J c`` back to ``v``
-        to rounding wherever ``cond(g) eps < 1``.
-        """
-        u = self.M_inv @ v
-        c = self._project(a, u)
-        Jc = self._eval(a[:, None], c[:, None], np.zeros((self.N, 1)))[self.N : 2 * self.N, 0]
-        return c + self._project(a, u - Jc)
+        """``c = g^{-1} J^T K v``: the K-orthogonal tangent coefficients of the embedded ``v``, refined once
+        (:meth:`Transfer.coefficients`)."""
+        return self._eval.coefficients(a[:, None], (self.M_inv @ v)[:, None])[:, 0]
 
     def _project(self, a: NDArray, u: NDArray) -> NDArray:
         """``g^{-1} J^T W u`` at one point ``a`` for a chart-space vector ``u`` (the Gauss-Newton step)."""

@@ -109,6 +109,19 @@ def unit_speed_start(chain, a, c):
     return h0, v0 / np.sqrt(2 * chain.kinetic_energy(v0))
 
 
+def assert_same_motion(got, ref, T: float) -> None:
+    """``got`` and ``ref`` solve one motion over ``T``: the same status, points at 51 times and at the end to 1e-10,
+    the same switch log (charts, and times to 1e-9), and ``got``'s recorded energy constant to 1e-13."""
+    assert got.t_reached == T and got.status == ref.status
+    ts = np.linspace(0.0, T, 51)
+    assert np.max(np.abs(got(ts)[0] - ref(ts)[0])) <= 1e-10
+    assert np.max(np.abs(got.end_state()[0] - ref.end_state()[0])) <= 1e-10
+    assert [(s.from_chart, s.to_chart) for s in got.switches] == [(s.from_chart, s.to_chart) for s in ref.switches]
+    assert np.allclose([s.time for s in got.switches], [s.time for s in ref.switches], atol=1e-9, rtol=0)
+    E = np.asarray(got.energies, dtype=float)
+    assert np.max(np.abs(E / E[0] - 1)) <= 1e-13
+
+
 class DifferentiatedFamily(SuspensionFamily):
     """A suspension family without jets: its derivatives come from heyoka's symbolic differentiation of the
     expanded ``z``, the independent route the jets are checked against (any ``SuspensionFamily`` options)."""
