@@ -70,6 +70,7 @@ class ChainTimeFactor(TimeFactor):
         if not isinstance(chain, Chain):
             raise TypeError(f"chain must be a linkage.Chain, got {type(chain).__name__}")
         self.n = chain.n
+        self.ambient_dim = 2 * (chain.n - 1)
         self.n_params = 3 * chain.n - 4
         K = np.asarray(chain.ambient_metric, dtype=float)
         w = 1.0 / np.diag(K)[::2]  # hinge k = 1..n-1

@@ -145,6 +145,9 @@ def solve_chart_exp_ode(
         raise ValueError(f"max_switches must be a positive integer, got {max_switches!r}")
     if stepper is None:
         stepper = TaylorStepper(tol)
+    elif not isinstance(stepper, Stepper):
+        raise TypeError(f"stepper must be None or a manifold.steppers.Stepper instance (TaylorStepper(), "
+                        f"SundmanStepper(...), ScipyStepper(...)), got {stepper!r}")
     elif tol is not None:
         raise ValueError("give tol to the stepper (e.g. TaylorStepper(tol=...)), not beside it")
     with reporting(report):  # the start compiles the transfer and quality functions

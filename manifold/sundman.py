@@ -59,10 +59,13 @@ class TimeFactor(ABC):
 
     Attributes
     ----------
+    ambient_dim
+        Dimension ``N`` of the ambient points ``p`` it takes.
     n_params
         Number of its parameters ``kappa``.
     """
 
+    ambient_dim: int
     n_params: int
 
     @property
@@ -130,8 +133,8 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
                     dense: bool, fp_type: Any, span_index: int) -> Advance:
     """Run the Sundman integrator ``ta`` of the chart from ``(t, y)`` to ``t_final`` or its first switch event.
 
-    ``pars`` are the chart's (:attr:`~manifold.compiled.ChartNumerics.pars`: up to ``span_index``),
-    ``factor_pars`` the time factor's.  Times in the result are physical; a segment that reaches
+    ``pars`` are the chart's (:attr:`~manifold.compiled.ChartNumerics.pars`: up to ``span_index``; what follows,
+    a velocity's wrap appended, goes last), ``factor_pars`` the time factor's.  Times in the result are physical; a segment that reaches
     ``t_final`` ends exactly there (its ``u = 1`` event, located by heyoka to a rounding).
 
     Numerical trap: ``u`` is a state variable, so each step rounds it by ``eps |u|``, and ``t`` by
@@ -148,7 +151,8 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
         return Advance(t, y, 0, None, np.array([t]), y[None, :], PointDense(y) if dense else None)
     ta.state[:] = np.append(y, fp_type(0.0))
     ta.time = fp_type(0.0)
-    ta.pars[:] = np.concatenate([pars[:span_index], as_fp([1.0], fp_type) / (t_final - t), factor_pars])[: len(ta.pars)]
+    ta.pars[:] = np.concatenate([pars[:span_index], as_fp([1.0], fp_type) / (t_final - t), factor_pars,
+                                 pars[span_index:]])[: len(ta.pars)]
     ta.reset_cooldowns()
     progress = step_callback()
     n_events, forward = len(ta.t_events), float(t_final - t) > 0  # dt/dtau > 0: tau runs with t
@@ -234,6 +238,9 @@ class SundmanStepper(TaylorStepper):
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
                 switching: bool) -> Iterator[Any]:
         velocity = self.velocity
+        if self.factor.ambient_dim != family.family.point_dim:
+            raise ValueError(f"factor: {self.factor!r} takes points of R^{self.factor.ambient_dim}, the charts of "
+                             f"{family.family!r} give points of R^{family.family.point_dim}")
         kappa = as_fp(self.factor.parameters(), fp_type)
         if velocity is not None:
             velocity.check(family, form)

@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 import manifold.progress
 from linkage import Chain
 from linkage.constraints import ChainSystem
+from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor, multiplier_determinant
 from manifold import solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
@@ -228,3 +229,15 @@ def test_bad_factors_are_refused_by_name():
         SundmanStepper("det M")  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="chain must be a linkage.Chain"):
         ChainTimeFactor("chain")  # type: ignore[arg-type]
+    chain = Chain(4, 2.5)
+    h0, v0 = unit_speed_start(chain, [0.2, 0.3], [0.5, -0.9])
+    with pytest.raises(ValueError, match=r"factor: ChainTimeFactor\(n=5\) takes points of R\^8, the charts .* R\^6"):
+        free_motion(chain, h0, v0, 1.0, stepper=SundmanStepper(ChainTimeFactor(Chain(5, 3.4))))
+
+
+def test_a_stepper_that_is_not_one_is_refused_by_name():
+    chain = Chain(4, 2.5)
+    h0, v0 = unit_speed_start(chain, [0.2, 0.3], [0.5, -0.9])
+    for bad in ("taylor", TaylorStepper):
+        with pytest.raises(TypeError, match="stepper must be None or a manifold.steppers.Stepper instance"):
+            free_motion(chain, h0, v0, 1.0, stepper=bad)
