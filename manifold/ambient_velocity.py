@@ -14,15 +14,22 @@ known without any chart: ``x'' = K^{-1} G^T lambda`` with
 
 .. math::
 
-    a' = g^{-1} J^T W V, \qquad V' = M^{-1} f(M z(a) + m, M J a'),
+    a' = g^{-1} J^T W V, \qquad V' = M^{-1} f(M z(a) + m, M J a') - \gamma (V - J a'),
 
 (``p = M z + m`` the chart's map, :meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`).
 Only the Jacobian ``J`` is needed: 307 full recursions at n = 4 with the switch
-events, against 511 (float64; 1,850 against 2,616 at n = 8).  The point
+events, against 511 in ``t`` (float64; 1,850 against 2,616 at n = 8; in Sundman's
+time 323.5 against 531.5 and 1,892.5 against 2,674.5).  The point
 stays on the manifold by construction (it is the chart's), so no constraint
-stabilisation is needed; ``V`` may drift off the tangent space by rounding,
-which ``a'`` and ``f``'s velocity ``J a'`` ignore (a K-orthogonal projection)
-and each segment's end removes (its state is read back as ``c = g^{-1} J^T W V``).
+stabilisation is needed.  ``V`` drifts off the tangent space by rounding;
+``a'`` and ``f``'s velocity ``J a'`` ignore that drift ``V - J a'`` (a K-orthogonal
+projection), and each segment's end removes it (its state is read back as
+``c = g^{-1} J^T W V``).  Within a segment, though, the drift turns into tangent
+velocity as the tangent space turns (planted at 1e-6, it changed the energy by
+6.6e-7 over t = 3), and over long runs the energy error grew like ``t^0.6..0.9``
+instead of ``sqrt(t)``; the last term damps it at the rate ``gamma`` of
+:func:`~manifold.constrained.damping_rate` (the hinge method's Baumgarte rate,
+scale-free), and vanishes on the exact solution.
 
 Steppers take it as ``velocity=`` (:class:`~manifold.steppers.TaylorStepper`,
 :class:`~manifold.sundman.SundmanStepper`).  Segments start and end in
@@ -40,9 +47,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .compiled import CompiledFamily, Transfer
-from .constrained import ConstrainedPieces, ConstrainedSystem, compiled_constrained
+from .constrained import ConstrainedPieces, ConstrainedSystem, compiled_constrained, damping_rate
+from .precision import as_fp
 from .solution import DenseOutput
 from .steppers import Advance, AdvanceFunction
+from .validation import check_real
+
+#: Damping rate of ``V``'s normal drift (:class:`ConstrainedVelocity`), chosen by measurement in ``docs/methods.md``.
+DEFAULT_RATE = 3.0
 
 
 class ConstrainedVelocity:
@@ -57,17 +69,25 @@ class ConstrainedVelocity:
         The solver's energy check, which reads the chart's metric, catches a
         system of another manifold or metric (a base ``L`` of 2.6 against the
         atlas's 2.7: energy error 0.10; 2.7001: 1.2e-4, both refused).
+    rate
+        Damping rate of ``V``'s normal drift ``V - J a'``, in units of the
+        motion's speed scale over the system's length (as the hinge method's
+        Baumgarte rate: :func:`manifold.constrained.damping_rate`); 0 leaves the
+        drift alone.  The default is chosen by measurement (``docs/methods.md``).
     """
 
-    def __init__(self, system: ConstrainedSystem) -> None:
+    def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE) -> None:
         if not isinstance(system, ConstrainedSystem):
             raise TypeError(f"system must be a manifold.constrained.ConstrainedSystem, got {type(system).__name__}")
         self.system = system
+        self.rate = check_real("rate", rate)
+        if self.rate < 0:
+            raise ValueError(f"rate must be a finite real number >= 0, got {rate!r}")
         self._compiled = compiled_constrained(system)
         self._values: dict[Any, NDArray] = {}  # fp_type -> parameter values
 
     def __repr__(self) -> str:
-        return f"ConstrainedVelocity({self.system!r})"
+        return f"ConstrainedVelocity({self.system!r}, rate={self.rate!r})"
 
     @property
     def key(self) -> Hashable:
@@ -90,11 +110,11 @@ class ConstrainedVelocity:
         return self._values[fp_type]
 
     def __getstate__(self) -> dict:
-        """Pickle the system only (for ensembles on other processes): the compiled store holds a lock."""
-        return {"system": self.system}
+        """Pickle the system and the rate only (for ensembles on other processes): the compiled store holds a lock."""
+        return {"system": self.system, "rate": self.rate}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["system"])  # type: ignore[misc]
+        self.__init__(state["system"], state["rate"])  # type: ignore[misc]
 
     def check(self, family: CompiledFamily, form: str) -> None:
         """Refuse a system of another ambient dimension than the family's points, and a ``form`` other than the
@@ -110,14 +130,17 @@ class ConstrainedVelocity:
     def wrap(self, advance: AdvanceFunction, family: CompiledFamily, fp_type: Any) -> AdvanceFunction:
         """An :data:`~manifold.steppers.AdvanceFunction` in ``(a, c)`` around ``advance``, which integrates ``(a, V)``.
 
-        Each segment starts from ``(a, c)`` and converts once (switches go through the ambient velocity anyway).
+        Each segment starts from ``(a, c)`` and converts once (switches go through the ambient velocity anyway),
+        and appends to the chart's parameters the damping rate ``gamma`` at the segment's energy.
         """
         k, N = family.family.dim, family.family.point_dim
 
         def run(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
             transfer = Transfer(family, fp_type, pars)
-            ambient = np.concatenate([y[:k], transfer(y[:k, None], y[k:, None], np.zeros((N, 1)))[N : 2 * N, 0]])
-            adv = advance(t, ambient, t_final, pars, dense)
+            start = transfer(y[:k, None], y[k:, None], np.zeros((N, 1)))  # z, J c, ..., E
+            ambient = np.concatenate([y[:k], start[N : 2 * N, 0]])
+            gamma = damping_rate(self.system, self.rate, float(start[-1, 0]), float(t_final - t))
+            adv = advance(t, ambient, t_final, np.concatenate([pars, as_fp([gamma], fp_type)]), dense)
             out = None if adv.dense is None else _ChartDense(adv.dense, transfer)
             return Advance(adv.t, _chart_states(adv.y[None, :], transfer)[0], adv.n_steps, adv.event, adv.step_times,
                            _chart_states(adv.step_states, transfer), out, adv.failure)

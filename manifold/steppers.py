@@ -107,7 +107,7 @@ class TaylorStepper(Stepper):
         ``None`` (default): the state is ``(a, c)`` (the embedded or Christoffel
         form).  A :class:`manifold.ambient_velocity.ConstrainedVelocity`: the
         state is ``(a, J c)`` and constraints give the acceleration, without
-        the chart's second derivatives (the solver's ``form`` is then unused).
+        the chart's second derivatives (a ``form`` other than ``"embedded"`` is then refused).
     """
 
     name = "taylor"
@@ -146,11 +146,12 @@ class TaylorStepper(Stepper):
             if velocity is None:
                 yield lambda t, y, t_final, pars, dense: taylor_advance(ta, t, y, t_final, pars, dense, fp_type)
                 return
-            # the constraint system's parameters after the chart's and the (unused in t) span's slot
+            # the constraint system's parameters after the chart's and the (unused in t) span's slot, then what
+            # the wrap appends to the chart's (the damping rate of the normal drift)
             tail = np.concatenate([as_fp([0.0], fp_type), velocity.parameters(fp_type)])
             span = family.layout.span_index
             yield velocity.wrap(lambda t, y, t_final, pars, dense: taylor_advance(
-                ta, t, y, t_final, np.concatenate([pars[:span], tail]), dense, fp_type), family, fp_type)
+                ta, t, y, t_final, np.concatenate([pars[:span], tail, pars[span:]]), dense, fp_type), family, fp_type)
 
 
 def taylor_relative_tolerance(tol: float | None, fp_type: Any) -> float:
