@@ -172,7 +172,8 @@ def free_motion(
       parameters and the switch log; by default in Sundman's time
       ``dt = det M dtau`` (:class:`manifold.sundman.SundmanStepper` with
       :class:`linkage.time_factor.ChainTimeFactor`: the same motion in 13-44 %
-      fewer steps; ``stepper=TaylorStepper()`` integrates in ``t``) with the state
+      fewer steps; a ``stepper`` given is taken as it is: ``stepper=TaylorStepper()`` integrates in ``t``
+      with the state ``(a, c)``) with the state
       ``(a, J c)`` and the rod constraints' acceleration
       (:class:`manifold.ambient_velocity.ConstrainedVelocity`: no second derivatives of the chart,
       0.6x the Taylor recursions; not with rod densities, nor when ``form`` is given: then ``(a, c)``);
