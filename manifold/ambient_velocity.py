@@ -47,7 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .compiled import CompiledFamily, Transfer
-from .constrained import ConstrainedPieces, ConstrainedSystem, compiled_constrained, damping_rate
+from .constrained import ConstrainedPieces, ConstrainedSystem, compiled_constrained, damping_rate, speed_scale
 from .precision import as_fp
 from .solution import DenseOutput
 from .steppers import Advance, AdvanceFunction
@@ -85,6 +85,7 @@ class ConstrainedVelocity:
             raise ValueError(f"rate must be a finite real number >= 0, got {rate!r}")
         self._compiled = compiled_constrained(system)
         self._values: dict[Any, NDArray] = {}  # fp_type -> parameter values
+        self._speed_scale = speed_scale(system)  # once: each segment's damping rate needs it
 
     def __repr__(self) -> str:
         return f"ConstrainedVelocity({self.system!r}, rate={self.rate!r})"
@@ -139,7 +140,7 @@ class ConstrainedVelocity:
             transfer = Transfer(family, fp_type, pars)
             start = transfer(y[:k, None], y[k:, None], np.zeros((N, 1)))  # z, J c, ..., E
             ambient = np.concatenate([y[:k], start[N : 2 * N, 0]])
-            gamma = damping_rate(self.system, self.rate, float(start[-1, 0]), float(t_final - t))
+            gamma = damping_rate(self._speed_scale, self.rate, float(start[-1, 0]), float(t_final - t))
             adv = advance(t, ambient, t_final, np.concatenate([pars, as_fp([gamma], fp_type)]), dense)
             out = None if adv.dense is None else _ChartDense(adv.dense, transfer)
             return Advance(adv.t, _chart_states(adv.y[None, :], transfer)[0], adv.n_steps, adv.event, adv.step_times,

@@ -62,7 +62,7 @@ from .validation import check_bool, check_real, check_time_grid, real_array
 
 __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "ConstrainedLayout", "ConstrainedSystem",
            "compiled_constrained", "constraint_bound", "damping_rate", "default_compact_mode", "solve_constrained",
-           "verdict"]
+           "speed_scale", "verdict"]
 
 Expr: TypeAlias = hy.expression
 #: How drift off the constraints is held back (see the module docstring).
@@ -514,7 +514,7 @@ class ConstrainedGeometry:
         self.pars = comp.layout.pack(system, 0.0, fp_type)
         self.N, self.m = system.ambient_dim, system.n_constraints
         self.eps = unit_roundoff(fp_type)
-        self.system = system
+        self.speed_scale = speed_scale(system)
 
     def __call__(self, x: NDArray, v: NDArray, r: NDArray | None = None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
         """Batched ``(c, G v, correction(r), E)`` for ``x, v`` of shape ``(B, N)``."""
@@ -572,22 +572,27 @@ class ConstrainedGeometry:
         if not np.all(np.isfinite(E0f)):
             k = int(np.argmax(~np.isfinite(E0f)))
             raise ValueError(f"{name(k).replace('x0', 'v0', 1)} gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0[k])):.3g})")
-        return x, v, E0, damping_rate(self.system, rate, E0f, t_final)
+        return x, v, E0, damping_rate(self.speed_scale, rate, E0f, t_final)
 
 
-def damping_rate(system: ConstrainedSystem, rate: float, energy: Any, direction: float) -> Any:
-    """``sign(direction) rate sqrt(2 E tr(K^-1)) / (N length_scale)``: a damping rate (1 / time) of drift off the
-    manifold at kinetic energy ``energy`` (a number or an array), scale-free in lengths, masses and speed.
+def speed_scale(system: ConstrainedSystem) -> float:
+    """``sqrt(tr(K^-1)) / (N length_scale)``: times ``sqrt(2 E)``, the speed scale of the fastest motion over the
+    system's length (a constant of the system, for :func:`damping_rate`).
 
-    ``sqrt(2 E tr(K^-1)) / N`` is the speed scale of the fastest motion.  With ``sqrt(2 E / tr K)``, the heavy
-    masses' speed, hinge masses 1e-3 and 1e2 (n = 3) were damped 160x too slowly and drifted off ``c = 0`` by
-    3.3e-12 over T = 20 (unit masses: 9e-16); for equal masses the two agree.  A damping term must damp in the
-    direction of integration: backward (``direction < 0``) the rate flips sign.
+    With ``sqrt(2 E / tr K)``, the heavy masses' speed, hinge masses 1e-3 and 1e2 (n = 3) were damped 160x too
+    slowly and drifted off ``c = 0`` by 3.3e-12 over T = 20 (unit masses: 9e-16); for equal masses the two agree.
     """
     K = np.asarray(system.metric_matrix, dtype=float)
     trace_inverse = sum(row[i] for i, row in enumerate(_exact_inverse(K)))  # cached: the layout's K^-1
-    speed_factor = float(np.sqrt(float(trace_inverse))) / K.shape[0]
-    return float(np.sign(direction)) * rate * np.sqrt(2 * energy) * speed_factor / float(system.length_scale)
+    return float(np.sqrt(float(trace_inverse))) / K.shape[0] / float(system.length_scale)
+
+
+def damping_rate(scale: float, rate: float, energy: Any, direction: float) -> Any:
+    """``sign(direction) rate sqrt(2 E) scale``: a damping rate (1 / time) of drift off the manifold at kinetic
+    energy ``energy`` (a number or an array), ``scale`` the system's :func:`speed_scale`; scale-free in lengths,
+    masses and speed.  A damping term must damp in the direction of integration: backward (``direction < 0``)
+    the rate flips sign."""
+    return float(np.sign(direction)) * rate * np.sqrt(2 * energy) * scale
 
 
 def default_compact_mode(system: ConstrainedSystem, fp_type: Any) -> bool:

@@ -22,7 +22,7 @@ from linkage.time_factor import ChainTimeFactor
 from manifold import solve_chart_exp_ode
 from manifold.ambient_velocity import DEFAULT_RATE, ConstrainedVelocity
 from manifold.compiled import Transfer, compiled
-from manifold.constrained import damping_rate
+from manifold.constrained import damping_rate, speed_scale
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper
 
@@ -179,7 +179,7 @@ def _planted_drift_run(rate: float, dt: float, drift: float) -> tuple[float, flo
     r = rng.normal(size=N)
     n = r - tangent(a0, r)[0]
     velocity = ConstrainedVelocity(system, rate=rate)
-    gamma = damping_rate(system, rate, E0, dt)
+    gamma = damping_rate(speed_scale(system), rate, E0, dt)
     with family.integrator(float, velocity=velocity) as ta:
         ta.state[:] = np.concatenate([a0, V0 + drift * n / np.linalg.norm(n)])
         ta.time = 0.0
