@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .artefacts import ArtefactStore
+from .carried import CarriedTerm, carried_violation
 from .expression_linalg import ldl_solve
 from .metric import InducedMetric
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
@@ -313,6 +314,8 @@ class ConstrainedPieces:
         The multiplier matrix ``G K^{-1} G^T`` (lower triangle), ``None`` for structural zeros.
     pivots
         The system's :meth:`ConstrainedSystem.multiplier_pivots` of ``M``, or ``None``.
+    system, params
+        The system and its :attr:`~ConstrainedSystem.parameters` as ``heyoka.par`` expressions.
     """
 
     def __init__(self, system: ConstrainedSystem, layout: ConstrainedLayout, fp_type: Any) -> None:
@@ -331,7 +334,7 @@ class ConstrainedPieces:
         self.damped = system.baumgarte_term_expressions(self.x, self.v, params, self.c, self.Gv, self.curvature,
                                                         hy.par[0])
         Kinv, self.K = layout.matrices(N)
-        self._system, self._params, self._Kinv = system, params, Kinv
+        self.system, self.params, self._Kinv = system, params, Kinv
         m = len(self.c)
         # W = K^{-1} G^T (N x m) and M = G W (m x m), keeping structural zeros
         W = [[_sum_or_none([kij * gkj for kij, gkj in zip(Kinv[i], self.G[k])
@@ -347,10 +350,27 @@ class ConstrainedPieces:
     def correction(self, r: list[Expr]) -> list[Expr]:
         """``K^{-1} G^T M^{-1} r``: the K-smallest ``d`` with ``G d = r`` (``G^T lambda`` first: products with the
         parameters ``K^{-1}`` cost O(order), products with ``W = K^{-1} G^T`` the O(order^2) of two variables)."""
-        force = self._system.transpose_product_expressions(self.x, self._params, self.G,
+        force = self.system.transpose_product_expressions(self.x, self.params, self.G,
                                                           ldl_solve(self.M, r, self.pivots))
         return [_sum_or_none([kij * fj for kij, fj in zip(row, force) if kij is not None and fj is not None])
                 or hy.expression(self.fp(0)) for row in self._Kinv]
+
+    def rates(self, w: list[Expr]) -> list[Expr]:
+        """``G(x) w``: the constraints' rates along ``w`` (:meth:`ConstrainedSystem.constraint_rate_expressions`)."""
+        return self.system.constraint_rate_expressions(self.x, w, self.params, self.G)
+
+    def bilinear(self, w: list[Expr]) -> list[Expr]:
+        """``v^T (nabla^2 c_k) w`` for each ``k``: ``(dG/dt) w`` along the velocity ``v``, symmetric in ``v`` and ``w``.
+
+        Written as the derivative of ``G v`` along ``w`` (``G v`` is exact off the constraints,
+        :meth:`ConstrainedSystem.constraint_rate_expressions`); at ``w = v`` it is the velocity term.
+        """
+        out = []
+        for Gv in self.Gv:
+            used = set(hy.get_variables(Gv))
+            terms = [hy.diff(Gv, xi) * wi for xi, wi in zip(self.x, w) if str(xi) in used]
+            out.append(hy.sum(terms) if terms else hy.expression(self.fp(0)))
+        return out
 
     def equations(self, stabilised: bool) -> list[tuple[Expr, Expr]]:
         """``x' = v``, ``v' = K^{-1} G^T M^{-1} r`` with ``r = -(dG/dt) v`` (minus ``2 alpha G v + alpha^2 c``
@@ -410,18 +430,32 @@ class CompiledConstrained(ArtefactStore):
             return hy.cfunc(acc, P.x + P.v, **heyoka_fp_kwargs(fp_type))
         return self._get(("acceleration", fp_type, stabilised), build)
 
-    @contextmanager
-    def integrator(self, fp_type: Any = float, tol: float | None = None, stabilised: bool = True,
-                   compact_mode: bool = False) -> Iterator[Any]:
-        """Lend a Taylor integrator of the constrained equations; set ``pars`` (:meth:`ConstrainedLayout.pack`) before use."""
+    def bilinear(self, fp_type: Any = float) -> Any:
+        """Compiled ``(x, v, w) -> v^T (nabla^2 c_k) w`` (:meth:`ConstrainedPieces.bilinear`), ``m`` outputs."""
         def build() -> Any:
             P = self.pieces(fp_type)
+            w = [hy.expression(f"w{i}") for i in range(len(P.x))]
+            return hy.cfunc(P.bilinear(w), P.x + P.v + w, compact_mode=True, **heyoka_fp_kwargs(fp_type))
+        return self._get(("bilinear", fp_type), build)
+
+    @contextmanager
+    def integrator(self, fp_type: Any = float, tol: float | None = None, stabilised: bool = True,
+                   compact_mode: bool = False, carry: tuple[CarriedTerm, ...] = ()) -> Iterator[Any]:
+        """Lend a Taylor integrator of the constrained equations, with the equations of the terms ``carry``
+        (:mod:`manifold.carried`) after ``(x, v)``; set ``pars`` (:meth:`ConstrainedLayout.pack`) before use."""
+        def build() -> Any:
+            P = self.pieces(fp_type)
+            equations = P.equations(stabilised)
+            for j, term in enumerate(carry):
+                y = [hy.expression(f"carried{j}_{i}") for i in range(term.size(len(P.x)))]
+                equations += list(zip(y, term.equations(P, y, stabilised)))
             kw = {} if tol is None else {"tol": fp_type(tol)}
-            return hy.taylor_adaptive(P.equations(stabilised), as_fp(np.zeros(2 * len(P.x)), fp_type),
+            return hy.taylor_adaptive(equations, as_fp(np.zeros(len(equations)), fp_type),
                                       compact_mode=compact_mode, **kw,
                                       **heyoka_fp_kwargs(fp_type))
 
-        with self._lend(("integrator", fp_type, tol, stabilised, compact_mode), build) as ta:
+        key = ("integrator", fp_type, tol, stabilised, compact_mode, tuple(term.key for term in carry))
+        with self._lend(key, build) as ta:
             yield ta
 
     def phase_jacobian(self, fp_type: Any = float) -> Any:
@@ -515,6 +549,8 @@ class ConstrainedGeometry:
         self.N, self.m = system.ambient_dim, system.n_constraints
         self.eps = unit_roundoff(fp_type)
         self.speed_scale = speed_scale(system)
+        self.K = as_fp(np.asarray(system.metric_matrix, dtype=float), fp_type)  # float64 entries: exact in fp_type
+        self._compiled = comp
 
     def __call__(self, x: NDArray, v: NDArray, r: NDArray | None = None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
         """Batched ``(c, G v, correction(r), E)`` for ``x, v`` of shape ``(B, N)``."""
@@ -524,6 +560,21 @@ class ConstrainedGeometry:
         out = self.cf(args, pars=np.ascontiguousarray(np.repeat(self.pars[: self.cf.nparams, None], B, axis=1)))
         m, N = self.m, self.N
         return out[:m].T, out[m : 2 * m].T, out[2 * m : 2 * m + N].T, out[-1]
+
+    def inner(self, a: NDArray, b: NDArray) -> NDArray:
+        """``a^T K b`` over the last axis, in the working precision."""
+        return np.sum((a @ self.K) * b, axis=-1)
+
+    def tangent(self, x: NDArray, w: NDArray) -> NDArray:
+        """Rows ``(B, N)``: the K-orthogonal projection ``w - K^{-1} G^T M^{-1} G w`` of ``w`` onto ``ker G(x)``."""
+        _, Gw, _, _ = self(x, w)
+        return w - self(x, w, Gw)[2]
+
+    def bilinear(self, x: NDArray, v: NDArray, w: NDArray) -> NDArray:
+        """Rows ``(B, N)``: ``v^T (nabla^2 c_k) w``, shape ``(B, m)`` (:meth:`ConstrainedPieces.bilinear`)."""
+        cf = self._compiled.bilinear(self.fp)
+        args = np.ascontiguousarray(as_fp(np.concatenate([x, v, w], axis=1).T, self.fp))
+        return cf(args, pars=np.ascontiguousarray(np.repeat(self.pars[: cf.nparams, None], x.shape[0], axis=1))).T
 
     def project(self, x: NDArray, v: NDArray) -> tuple[NDArray, NDArray]:
         """Rows ``(B, N)``: Gauss-Newton ``x -= K^{-1} G^T M^{-1} c(x)`` until ``max_k |c_k| <= 4 eps``, row by
@@ -661,6 +712,7 @@ def solve_constrained(
     metric: InducedMetric | None = None,
     throw: bool = True,
     progress: ProgressArgument = None,
+    carry: tuple[CarriedTerm, ...] = (),
 ) -> GeodesicSolution:
     """Integrate the geodesic of ``system`` from ``(x0, v0)`` with heyoka's Taylor method, in ambient coordinates.
 
@@ -697,7 +749,8 @@ def solve_constrained(
         n = 8 chain took 104 s to compile for a 2.2x faster step) and for
         real128 and :class:`~manifold.precision.MultiPrecision`, whose
         software arithmetic dominates the step (unrolled code at 150 bits
-        exhausted memory).
+        exhausted memory), and with terms carried (``carry``; a Jacobi field
+        at n = 4 took 52 s to compile unrolled, 1.1 s compact).
     dense
         Keep the Taylor coefficients of every step, for ``sol(t)`` at any time.
     t_eval
@@ -714,13 +767,18 @@ def solve_constrained(
         :func:`manifold.solve_chart_exp_ode`: ``True`` (a tqdm bar), a
         callable taking a :class:`~manifold.progress.ProgressUpdate`,
         ``False``, or ``None`` (only inside a :func:`manifold.progress.reporting` block).
+    carry
+        :class:`~manifold.carried.CarriedTerm` s integrated along (use :func:`manifold.carried.solve_carried`,
+        which reads them back); their invariants are checked at every recorded step.  Not with
+        ``"projection"``, which would have to project them too.
 
     Returns
     -------
     GeodesicSolution
         With segments in ambient coordinates (``chart = None``).  Energies are
         recorded at every step and checked against the solvers' bound;
-        ``max_k |c_k|`` likewise (status ``CONSTRAINT_CHECK_FAILED``).
+        ``max_k |c_k|`` likewise (status ``CONSTRAINT_CHECK_FAILED``), and the
+        carried terms' invariants (``CARRIED_CHECK_FAILED``).
     """
     wall0 = time.perf_counter()
     fp_type = resolve_fp_type(fp_type)
@@ -730,10 +788,17 @@ def solve_constrained(
         tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
     if stabilisation not in STABILISATIONS:
         raise ValueError(f"stabilisation must be one of {STABILISATIONS}, got {stabilisation!r}")
+    carry = tuple(carry)
+    if not all(isinstance(term, CarriedTerm) for term in carry):
+        raise TypeError(f"carry must hold CarriedTerm objects, got {carry!r}")
+    if carry and stabilisation == "projection":
+        raise ValueError("carry cannot be used with stabilisation='projection' (the carried quantities would need "
+                         "projecting too): use 'baumgarte' or 'none'")
     rate = check_real("rate", rate, positive=True)
     interval = check_real("projection_interval", projection_interval, positive=True)
     if compact_mode is None:
-        compact_mode = default_compact_mode(system, fp_type)
+        # with a Jacobi field carried, unrolled code took 52 s to compile at n = 4 (compact: 1.1 s)
+        compact_mode = default_compact_mode(system, fp_type) or bool(carry)
     compact_mode, dense, throw = (check_bool("compact_mode", compact_mode), check_bool("dense", dense),
                                   check_bool("throw", throw))
     N = system.ambient_dim
@@ -751,9 +816,15 @@ def solve_constrained(
         geo = ConstrainedGeometry(system, fp_type)
     xs, vs, E0s, alphas = geo.start(x0[None, :], v0[None, :], t_final, rate)
     x, v, E0, alpha = xs[0], vs[0], E0s[0], float(alphas[0])
+    carried = np.concatenate([np.zeros(0, dtype=x.dtype)] + [term.start(geo, x, v) for term in carry])
+    first = np.concatenate([x, v, carried])
+    slots, offset = [], 2 * N
+    for term in carry:
+        slots.append(slice(offset, offset + term.size(N)))
+        offset += term.size(N)
 
     sol = GeodesicSolution(metric, fp_type, f"constrained-taylor ({stabilisation})", (0.0, t_final), {})
-    sol.t_eval = grid
+    sol.t_eval, sol.ambient_dim = grid, N
     sol.energy_times.append(fp_type(0.0))
     sol.energies.append(E0)
     eps = taylor_relative_tolerance(tol, fp_type)
@@ -762,25 +833,29 @@ def solve_constrained(
     n_grid, project_seconds = 0, 0.0
     t = fp_type(0.0)
     with solve_progress(report, sol) as reports, comp.integrator(fp_type, tol, stabilisation == "baumgarte",
-                                                                      compact_mode) as ta:
+                                                                      compact_mode, carry) as ta:
         compile_seconds = time.perf_counter() - t_compile
         pars = comp.layout.pack(system, alpha, fp_type)
         for end in ends:
-            adv = taylor_advance(ta, t, np.concatenate([x, v]), fp_type(end), pars, dense or grid is not None,
-                                 fp_type)
+            adv = taylor_advance(ta, t, np.concatenate([x, v, carried]), fp_type(end), pars,
+                                 dense or grid is not None, fp_type)
             sol.segments.append(Segment(None, t, adv.t, adv.n_steps, adv.dense if dense else None))
-            c, _, _, E = geo(adv.step_states[:, :N], adv.step_states[:, N:])
+            c, _, _, E = geo(adv.step_states[:, :N], adv.step_states[:, N : 2 * N])
             recorded = len(sol.energies)
             sol.energy_times.extend(adv.step_times)
             sol.energies.extend(np.atleast_1d(E))
             if grid is not None:
-                n_grid = sol.record_grid(grid, n_grid, adv, sign, lambda s: (s[:, :N], s[:, N:]))
-            t, x, v = adv.t, adv.y[:N], adv.y[N:]
+                n_grid = sol.record_grid(grid, n_grid, adv, sign, lambda s: (s[:, :N], s[:, N : 2 * N]))
+            t, x, v, carried = adv.t, adv.y[:N], adv.y[N : 2 * N], adv.y[2 * N :]
             if reports is not None:
                 reports.segment(t, "ambient coordinates")
             drift = float(np.max(np.abs(c.astype(float)))) if c.size else 0.0
             status, message = verdict(sol.energy_violation(recorded, eps, "ambient coordinates"), drift,
                                       sol.n_steps, eps, float(t), adv.failure)
+            for term, sl in zip(carry, slots):
+                violation = carried_violation(term, geo, adv.step_states, first, sl, adv.step_times, sol.n_steps, eps)
+                if status is SolveStatus.SUCCESS and violation is not None:
+                    status, message = SolveStatus.CARRIED_CHECK_FAILED, violation
             if status is not SolveStatus.SUCCESS:
                 break
             if stabilisation == "projection" and end != ends[-1]:

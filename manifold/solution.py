@@ -73,6 +73,7 @@ class SolveStatus(enum.Enum):
     NO_GOOD_CHART = "no chart of quality above q_out"
     ENERGY_CHECK_FAILED = "the energy left its bound"
     CONSTRAINT_CHECK_FAILED = "the state left the constraints"
+    CARRIED_CHECK_FAILED = "a quantity carried along the geodesic left its bound"
 
 
 class GeodesicIntegrationError(RuntimeError):
@@ -231,6 +232,8 @@ class GeodesicSolution:
         Chart index -> :class:`~manifold.compiled.ChartNumerics` in ``fp_type``.
     stats
         :class:`SolverStats`.
+    ambient_dim
+        ``N``, set by the solvers in ambient coordinates (whose state may carry more than ``(p, v)``).
     """
 
     metric: InducedMetric | None
@@ -249,6 +252,7 @@ class GeodesicSolution:
     velocities: NDArray | None = field(default=None, repr=False)
     final_state: tuple | None = field(default=None, repr=False)
     stats: SolverStats | None = field(default=None, repr=False)
+    ambient_dim: int | None = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         err = f"{self.relative_energy_error:.1e}" if self.energies else "n/a"
@@ -355,6 +359,14 @@ class GeodesicSolution:
             states[sel, : vals.shape[1]] = vals
         return seg, states
 
+    def states(self, t: ArrayLike) -> NDArray:
+        """The integrator's state at time(s) ``t``, shape ``t.shape + (width,)``, in ``fp_type``, as integrated
+        (chart segments: ``(a, c)`` padded to the widest segment; ambient ones: ``(x, v)`` and any quantities
+        carried along, :mod:`manifold.carried`)."""
+        ts = np.asarray(t, dtype=float)
+        _, states = self._states(ts.ravel())
+        return states.reshape(*ts.shape, states.shape[1])
+
     def parameters(self, t: ArrayLike) -> tuple:
         """Chart index, parameters ``a`` and coefficients ``c`` at time(s) ``t``.
 
@@ -389,8 +401,8 @@ class GeodesicSolution:
         ts = np.asarray(t, dtype=float)
         flat = ts.ravel()
         seg, states = self._states(flat)
-        # without an atlas every segment is in ambient coordinates, the state (p, v)
-        N = states.shape[1] // 2 if self.metric is None else self.metric.atlas.ambient_dim
+        # without an atlas every segment is in ambient coordinates, the state (p, v, anything carried along)
+        N = self.ambient_dim or (states.shape[1] // 2 if self.metric is None else self.metric.atlas.ambient_dim)
         ps = np.empty((flat.size, N), dtype=states.dtype)
         vs = np.empty((flat.size, N), dtype=states.dtype)
         charts = np.array([-1 if self.segments[s].chart is None else self.segments[s].chart for s in seg])

@@ -1,0 +1,333 @@
+"""Riemannian geometry of a chain's configuration space: exp, parallel transport, Jacobi fields, log and distance.
+
+All of them run in hinge coordinates, on the rod constraints of
+:class:`linkage.constraints.ChainSystem` (no chart, so nothing is singular:
+poles and folds of the suspension charts are ordinary points here), with the
+quantities carried along the geodesic as :mod:`manifold.carried` terms in the
+same heyoka Taylor integrator as the geodesic.  Hinges, velocities and
+tangent vectors are complex, shape ``(n-1,)`` (a vector of hinge velocities);
+several vectors at once have shape ``(k, n-1)``.  The kinetic metric is
+``<u, w> = Re(u^H A w)`` with the chain's mass matrix ``A``.
+
+The names follow Manifolds.jl where they fit: ``exp``, ``parallel_transport``
+(``parallel_transport_direction`` there: the geodesic is given by its start
+and velocity), ``jacobi_field`` (its start value and covariant derivative,
+not a geodesic between two points), ``log`` and ``distance``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from manifold.carried import CarriedSolution, CarriedTerm, solve_carried
+from manifold.constrained import solve_constrained
+from manifold.jacobi import JacobiField
+from manifold.transport import ParallelTransport
+from manifold.validation import check_positive_int, check_real, check_time_grid
+
+from .chain import Chain
+from .constraints import ChainSystem, HingeConstraints, start_state
+
+__all__ = ["CarriedMotion", "JacobiFieldMotion", "LogResult", "TransportedVectors", "distance", "exp",
+           "jacobi_field", "log", "parallel_transport"]
+
+
+class CarriedMotion:
+    """A chain's geodesic with quantities carried along it, sampled at :attr:`times` and callable at any time.
+
+    Attributes
+    ----------
+    chain
+        The chain.
+    carried
+        The :class:`manifold.carried.CarriedSolution` (working precision, stats, the solve's checks).
+    times, hinges, velocities
+        The sample times and the complex hinges and velocities there, ``(len(times), n-1)``.
+    """
+
+    def __init__(self, chain: Chain, carried: CarriedSolution, times: NDArray, single: bool) -> None:
+        self.chain, self.carried, self._single = chain, carried, single
+        self.times = np.asarray(times, dtype=float)
+        x, v, values = carried(self.times)
+        self.hinges, self.velocities = chain.from_point(x.astype(float)), chain.from_point(v.astype(float))
+        self._values = {name: self._complex(a) for name, a in values[0].items()}
+
+    def _complex(self, a: NDArray) -> NDArray:
+        out = self.chain.from_point(a.astype(float))  # (..., k, n-1)
+        return out[..., 0, :] if self._single else out
+
+    def __repr__(self) -> str:
+        sol = self.carried.solution
+        return (f"{type(self).__name__}({self.chain!r}, t = 0 -> {float(sol.t_reached):g}, {len(self.times)} times, "
+                f"{sol.n_steps} steps, energy error {sol.relative_energy_error:.1e})")
+
+    def __call__(self, t: ArrayLike) -> "CarriedMotion":
+        """The same motion sampled at the time(s) ``t`` (1-d, within ``[0, T]``)."""
+        ts = np.atleast_1d(np.asarray(t, dtype=float))
+        if ts.ndim != 1:
+            raise ValueError(f"t must be a time or a 1-d array of times, got shape {ts.shape}")
+        return type(self)(self.chain, self.carried, ts, self._single)
+
+
+class TransportedVectors(CarriedMotion):
+    """:func:`parallel_transport`'s result: :attr:`vectors`, shape ``(len(times), n-1)`` or ``(len(times), k, n-1)``."""
+
+    @property
+    def vectors(self) -> NDArray:
+        """The transported vectors at :attr:`times` (complex hinge velocities)."""
+        return self._values["vectors"]
+
+
+class JacobiFieldMotion(CarriedMotion):
+    """:func:`jacobi_field`'s result: :attr:`field` and :attr:`field_derivative` at :attr:`times`."""
+
+    @property
+    def field(self) -> NDArray:
+        """``J(t)``, shape ``(len(times), n-1)`` or ``(len(times), k, n-1)``."""
+        return self._values["field"]
+
+    @property
+    def field_derivative(self) -> NDArray:
+        """The covariant derivative ``D_t J(t)``, the same shape."""
+        return self._values["field_derivative"]
+
+
+def _tangent_vectors(chain: Chain, x0: NDArray, values: ArrayLike, name: str,
+                     tangent_tol: float) -> tuple[NDArray, bool]:
+    """Complex tangent vectors at ``x0`` (shape ``(n-1,)`` or ``(k, n-1)``) as real rows ``(k, N)``, checked."""
+    w = chain.as_hinges(values, name)
+    if w.ndim not in (1, 2) or w.shape[-1] != chain.n - 1 or w.size == 0:
+        raise ValueError(f"{name} must have shape (n - 1,) = ({chain.n - 1},) or (k, {chain.n - 1}), got {w.shape}")
+    rows = np.atleast_2d(chain.to_point(w)).astype(float)
+    residual = HingeConstraints(chain).tangency_residual(np.broadcast_to(x0, rows.shape), rows)
+    scale = np.maximum(1.0, np.linalg.norm(rows, axis=1))
+    bad = ~(residual <= tangent_tol * scale)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise ValueError(f"{name}{'' if w.ndim == 1 else f'[{k}]'} is not tangent to the configuration space: "
+                         f"max_k l_k |(G w)_k| = {residual[k]:.3g} exceeds tangent_tol * max(1, |w|) = "
+                         f"{tangent_tol * scale[k]:.3g}")
+    return rows, w.ndim == 1
+
+
+def _times(t_eval: ArrayLike | None, carried: CarriedSolution) -> NDArray:
+    if t_eval is None:  # every step of the integrator
+        return np.array([float(t) for t in carried.solution.energy_times])
+    return np.asarray(t_eval, dtype=float)
+
+
+def _solve(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, term_of: Any, t_eval: ArrayLike | None,
+           tangent_tol: float, options: dict[str, Any]) -> tuple[CarriedSolution, NDArray]:
+    _, x0, v0, T = start_state(chain, hinges0, velocity0, T, tangent_tol, False)
+    if t_eval is not None:
+        t_eval = check_time_grid(t_eval, T)
+    term: CarriedTerm = term_of(x0)
+    carried = solve_carried(ChainSystem(chain), x0, v0, T, [term], **options)
+    return carried, _times(t_eval, carried)
+
+
+def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, **options: Any) -> NDArray:
+    """The exponential map: the hinges at time ``t`` of the geodesic from ``hinges0`` with velocity ``velocity0``.
+
+    Parameters
+    ----------
+    chain
+        The chain (any generic lengths).
+    hinges0, velocity0
+        Complex hinges (closing to 1e-9) and a tangent hinge velocity, shape ``(n-1,)``.
+    t
+        The time (nonzero; negative runs backward).  ``exp(chain, h, v, t) = exp(chain, h, t v, 1)``.
+    **options
+        Passed to :func:`manifold.constrained.solve_constrained` (``fp_type``, ``tol``, ``throw``, ...).
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex hinges, shape ``(n-1,)`` (rounded to complex128).
+    """
+    _, x0, v0, t = start_state(chain, hinges0, velocity0, t, options.pop("tangent_tol", 1e-9), False)
+    sol = solve_constrained(ChainSystem(chain), x0, v0, t, dense=False, **options)
+    return chain.from_point(sol.end_state()[0].astype(float))
+
+
+def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, vectors0: ArrayLike, T: float,
+                       t_eval: ArrayLike | None = None, *, tangent_tol: float = 1e-9,
+                       **options: Any) -> TransportedVectors:
+    """Transport tangent vectors parallel along the geodesic from ``(hinges0, velocity0)`` for the time ``T``.
+
+    ``W' = -K^{-1} G^T M^{-1} ((dG/dt) W)`` in hinge coordinates
+    (:class:`manifold.transport.ParallelTransport`), integrated with the
+    geodesic.  The kinetic inner products of the vectors with each other and
+    with the velocity are constant; the solve checks them at every step and
+    raises :class:`manifold.GeodesicIntegrationError` if they drift beyond the
+    energy bound.
+
+    Parameters
+    ----------
+    chain, hinges0, velocity0
+        As in :func:`exp`.
+    vectors0
+        Complex tangent vectors at ``hinges0``: shape ``(n-1,)`` or ``(k, n-1)``;
+        tangent to ``tangent_tol`` (as ``velocity0``), else ``ValueError``.
+    T
+        The time to transport for (nonzero; negative runs backward).
+    t_eval
+        The times of :attr:`~CarriedMotion.times` (1-d, within ``[0, T]``, in order); default every step.
+    tangent_tol
+        The tangency tolerance of ``velocity0`` and ``vectors0``.
+    **options
+        Passed to :func:`manifold.carried.solve_carried` (``fp_type``, ``tol``, ``rate``, ``throw``, ``progress``).
+
+    Returns
+    -------
+    TransportedVectors
+        ``times``, ``hinges``, ``velocities``, ``vectors``; callable at other times.
+    """
+    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
+    single: list[bool] = []
+
+    def term(x0: NDArray) -> CarriedTerm:
+        rows, one = _tangent_vectors(chain, x0, vectors0, "vectors0", tangent_tol)
+        single.append(one)
+        return ParallelTransport(rows)
+
+    carried, times = _solve(chain, hinges0, velocity0, T, term, t_eval, tangent_tol, options)
+    return TransportedVectors(chain, carried, times, single[0])
+
+
+def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0: ArrayLike, derivative0: ArrayLike,
+                 T: float, t_eval: ArrayLike | None = None, *, tangent_tol: float = 1e-9,
+                 **options: Any) -> JacobiFieldMotion:
+    """The Jacobi field along the geodesic from ``(hinges0, velocity0)`` with ``J(0) = field0``, ``D_t J(0) = derivative0``.
+
+    The linearised geodesic flow (:class:`manifold.jacobi.JacobiField`): ``J``
+    solves ``D_t^2 J + R(J, v) v = 0``.  ``J(0) = 0`` gives the fields that
+    vanish again at the points conjugate to the start.
+
+    Parameters
+    ----------
+    chain, hinges0, velocity0, T, t_eval, tangent_tol, **options
+        As in :func:`parallel_transport`.
+    field0, derivative0
+        Complex tangent vectors at ``hinges0``, one shape: ``(n-1,)`` or ``(k, n-1)`` for ``k`` fields at once.
+
+    Returns
+    -------
+    JacobiFieldMotion
+        ``times``, ``hinges``, ``velocities``, ``field``, ``field_derivative``; callable at other times.
+    """
+    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
+    single: list[bool] = []
+
+    def term(x0: NDArray) -> CarriedTerm:
+        J, one = _tangent_vectors(chain, x0, field0, "field0", tangent_tol)
+        U, _ = _tangent_vectors(chain, x0, derivative0, "derivative0", tangent_tol)
+        if J.shape != U.shape:
+            raise ValueError(f"field0 and derivative0 must have one shape, got {np.shape(field0)} and "
+                             f"{np.shape(derivative0)}")
+        single.append(one)
+        return JacobiField(J, U)
+
+    carried, times = _solve(chain, hinges0, velocity0, T, term, t_eval, tangent_tol, options)
+    return JacobiFieldMotion(chain, carried, times, single[0])
+
+
+class LogResult:
+    """:func:`log`'s answer with its record: :attr:`velocity`, :attr:`distance`, :attr:`residual`, :attr:`iterations`."""
+
+    def __init__(self, velocity: NDArray, distance: float, residual: float, iterations: int) -> None:
+        self.velocity, self.distance, self.residual, self.iterations = velocity, distance, residual, iterations
+
+    def __repr__(self) -> str:
+        return (f"LogResult(distance {self.distance:.6g}, |exp(v) - h1| = {self.residual:.1e}, "
+                f"{self.iterations} Newton steps)")
+
+
+def _tangent_basis(chain: Chain, x0: NDArray) -> NDArray:
+    """A K-orthonormal basis of the tangent space at ``x0``, rows ``(n-2, N)`` (``n - 2`` for generic lengths)."""
+    constraints = HingeConstraints(chain)
+    G = constraints.jacobian(x0)
+    K = chain.ambient_metric
+    # the K-orthogonal complement of the rows of K^{-1} G^T: null space of G, orthonormalised in K
+    _, s, Vt = np.linalg.svd(G)
+    null = Vt[np.sum(s > s[0] * 1e-12):]
+    C = np.linalg.cholesky(null @ K @ null.T)
+    return np.linalg.solve(C, null)
+
+
+def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess: ArrayLike | None = None,
+        rtol: float = 1e-12, max_iterations: int = 30, **options: Any) -> LogResult:
+    """The logarithm: a velocity ``v0`` at ``hinges0`` with ``exp(chain, hinges0, v0, 1) = hinges1``.
+
+    Newton's method on the shooting map ``v -> exp(v)``: its derivative along a
+    tangent basis ``e_i`` at the start is the Jacobi fields with ``J(0) = 0``,
+    ``D_t J(0) = e_i`` at ``t = 1``, integrated with the geodesic (one solve per
+    step), and the step is the least-squares solution of ``exp(v) - h1``
+    against them.  Below the injectivity radius the geodesic is unique and
+    minimal; beyond, the answer is the geodesic Newton converges to from the
+    guess, which need not be the shortest.
+
+    Parameters
+    ----------
+    chain
+        The chain.
+    hinges0, hinges1
+        Complex configurations of the same connected component, shape ``(n-1,)``.
+    velocity_guess
+        A start for Newton's method; default the K-orthogonal projection of
+        ``hinges1 - hinges0`` onto the tangent space at ``hinges0`` (good for
+        nearby points).
+    rtol
+        Convergence: ``|exp(v) - h1| <= rtol`` times the chain's mean rod length.
+    max_iterations
+        Newton steps at most; :class:`RuntimeError` (with the best residual) beyond.
+    **options
+        Passed to :func:`manifold.carried.solve_carried` (``fp_type``, ``tol``).
+
+    Returns
+    -------
+    LogResult
+        ``velocity`` (complex, ``(n-1,)``), ``distance`` (its kinetic length
+        ``sqrt(v^H A v)``), the final ``residual`` and the ``iterations`` taken.
+    """
+    rtol = check_real("rtol", rtol, positive=True)
+    max_iterations = check_positive_int("max_iterations", max_iterations)
+    h0 = chain.check_configuration(hinges0, tol=1e-9)
+    h1 = chain.check_configuration(hinges1, tol=1e-9)
+    x0, x1 = chain.to_point(h0).astype(float), chain.to_point(h1).astype(float)
+    basis = _tangent_basis(chain, x0)
+    K = chain.ambient_metric
+    if velocity_guess is None:
+        guess = basis.T @ (basis @ K @ (x1 - x0))
+    else:
+        guess, _ = _tangent_vectors(chain, x0, velocity_guess, "velocity_guess", 1e-9)
+        guess = guess[0]
+    c = basis @ K @ guess  # coordinates in the K-orthonormal basis
+    scale = float(np.mean(chain.lengths))
+    best = np.inf
+    system = ChainSystem(chain)
+    for iteration in range(1, max_iterations + 1):
+        v = basis.T @ c
+        if not np.any(v):  # hinges1 == hinges0: the zero velocity, no geodesic to integrate
+            return LogResult(chain.from_point(v), 0.0, float(np.linalg.norm(x1 - x0)), iteration - 1)
+        carried = solve_carried(system, x0, v, 1.0, [JacobiField(np.zeros_like(basis), basis)], **options)
+        x, _, values = carried(np.array([1.0]))
+        residual = x[0].astype(float) - x1
+        best = min(best, float(np.linalg.norm(residual)))
+        if best <= rtol * scale:
+            speed = float(np.sqrt(v @ K @ v))
+            return LogResult(chain.from_point(v), speed, best, iteration - 1)
+        jac = values[0]["field"][0].astype(float).T  # (N, n-2): d exp / d c
+        step, *_ = np.linalg.lstsq(jac, -residual, rcond=None)
+        c = c + step
+    raise RuntimeError(f"log did not converge in {max_iterations} Newton steps: the best |exp(v) - hinges1| was "
+                       f"{best:.3g} (> rtol * mean rod length = {rtol * scale:.3g}); pass a velocity_guess closer to "
+                       "the geodesic wanted, or points closer together")
+
+
+def distance(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, **options: Any) -> float:
+    """The geodesic distance ``sqrt(v0^H A v0)`` of :func:`log` ``(chain, hinges0, hinges1)`` (its caveats apply)."""
+    return log(chain, hinges0, hinges1, **options).distance

@@ -1,0 +1,319 @@
+"""Geometry beyond exp: parallel transport, Jacobi fields, log and distance (``linkage.geometry``, ``manifold.carried``).
+
+Each is checked against something computed another way: transport against a
+numpy/scipy integration of its own equations from ``HingeConstraints`` (numpy
+code, not the heyoka expressions) and by its invariants; Jacobi fields against
+finite differences of geodesics and, on the n = 4 sphere, against the scalar
+Jacobi equation ``y'' + K |v|^2 y = 0`` with the Gaussian curvature of the
+curvature code (the Gauss equation in the charts); log against exp; holonomy
+against the angle excess of the geodesic triangle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.integrate import solve_ivp
+
+from linkage import Chain
+from linkage import geometry
+from linkage.constraints import ChainSystem, HingeConstraints
+from linkage.motion import free_motion
+from linkage.sampling import sample_starts
+from manifold import GeodesicIntegrationError
+from manifold.carried import solve_carried
+from manifold.jacobi import JacobiField
+from manifold.transport import ParallelTransport
+
+
+def _random_tangent(chain: Chain, hinges: np.ndarray, rng: np.random.Generator, k: int | None = None) -> np.ndarray:
+    """Complex tangent vectors at ``hinges`` (``k`` of them, or one), K-projected from Gaussian draws."""
+    hc = HingeConstraints(chain)
+    x = chain.to_point(hinges)
+    rows = [hc.project_velocity(x, rng.normal(size=x.shape)) for _ in range(1 if k is None else k)]
+    w = chain.from_point(np.array(rows))
+    return w[0] if k is None else w
+
+
+def _gram(chain: Chain, vectors: np.ndarray) -> np.ndarray:
+    """Kinetic inner products ``Re(u^H A w)`` of the rows of ``vectors`` (last axis the hinges)."""
+    return np.real(np.einsum("...ai,ij,...bj->...ab", vectors.conj(), chain.mass_matrix, vectors))
+
+
+def _pole_start(n: int, L: float) -> np.ndarray:
+    """Hinges at an exact pole of chart 0 (its first rods in one line)."""
+    chain = Chain(n, L)
+    a = np.zeros(n - 2)
+    a[0] = np.pi / 2
+    return chain.from_point(chain.atlas().get_point(0, a))
+
+
+chains = st.builds(
+    lambda n, gap, side, masses, density: Chain(n, (n - 2 + gap) if side else (n - gap),
+                                                hinge_masses=masses[: n - 1], rod_densities=density),
+    st.integers(3, 6), st.sampled_from([0.5, 0.1, 1e-2, 1e-3]), st.booleans(),
+    st.lists(st.sampled_from([1e-2, 0.3, 1.0, 5.0, 50.0]), min_size=7, max_size=7), st.sampled_from([0.0, 0.4]))
+
+
+def _transport_drift(chain: Chain, seed: int, T: float) -> tuple[float, geometry.TransportedVectors]:
+    """Over ``T``, the largest change of the Gram matrix of two transported vectors and the velocity (relative to
+    the norms), from a start of speed ~1 (kinetic energy half the mean hinge mass)."""
+    rng = np.random.default_rng(seed)
+    H, V = sample_starts(chain, 1, 0.5 * float(np.mean(chain.hinge_masses)), rng)
+    W0 = _random_tangent(chain, H[0], rng, 2)
+    pt = geometry.parallel_transport(chain, H[0], V[0], W0, T, t_eval=np.linspace(0, T, 41))
+    gram = _gram(chain, np.concatenate([pt.vectors, pt.velocities[:, None, :]], axis=1))
+    norms = np.sqrt(np.diagonal(gram[0]))
+    return float((np.abs(gram - gram[0]) / np.outer(norms, norms)).max()), pt
+
+
+@pytest.mark.parametrize("n", [3, 4, 6, 8])
+def test_transport_is_an_isometry_to_1e_13_over_t_20(n):
+    """Unit rods and masses, L in mid-range: the Gram matrix of (W_1, W_2, v) moves by at most 1e-13."""
+    drift, _ = _transport_drift(Chain(n, n - 0.6), 1, 20.0)
+    assert drift <= 1e-13
+
+
+@given(chain=chains, seed=st.integers(0, 2**16), backward=st.booleans())
+@settings(max_examples=10)
+def test_transport_is_an_isometry_and_keeps_its_angle_with_the_velocity(chain, seed, backward):
+    """Over T = 20, short links, spread masses and L near both ends included: the Gram matrix of two transported
+    vectors and the velocity moves by at most 10 times the geodesic's own energy error plus the random walk of
+    rounding, ``sqrt(steps) u`` (the transport is as isometric as the geodesic keeps its energy: both are
+    integrated with one tolerance; near the top of L both lose digits), and the vectors stay tangent.  A solve
+    may refuse (raise) only where the geodesic alone fails its energy check too."""
+    T = -20.0 if backward else 20.0
+    try:
+        drift, pt = _transport_drift(chain, seed, T)
+    except GeodesicIntegrationError as refusal:
+        rng = np.random.default_rng(seed)
+        H, V = sample_starts(chain, 1, 0.5 * float(np.mean(chain.hinge_masses)), rng)
+        alone = free_motion(chain, H[0], V[0], T, method="hinges", compact_mode=True, throw=False)
+        assert not alone.success, f"the transport refused where the geodesic alone succeeds: {refusal}"
+        return
+    sol = pt.carried.solution
+    assert drift <= 10 * (sol.relative_energy_error + np.sqrt(sol.n_steps) * 2.0**-53)
+    norms = np.sqrt(np.diagonal(_gram(chain, pt.vectors[0])))
+    hc = HingeConstraints(chain)
+    x = chain.to_point(pt.hinges)
+    for a in range(2):
+        w = chain.to_point(pt.vectors[:, a])
+        assert hc.tangency_residual(x, w).max() <= 1e-12 * norms[a]
+
+
+def _numpy_transport(chain: Chain, h0, v0, w0, ts) -> np.ndarray:
+    """The geodesic and a transported vector by scipy's DOP853 on numpy code: ``x'' = HingeConstraints.acceleration``,
+    ``W' = K^-1 G^T M^-1 (-(dG[v]) W)`` with ``dG[v] = G(v) - G(0)`` (``G`` is affine in ``x``)."""
+    hc = HingeConstraints(chain)
+    N = 2 * (chain.n - 1)
+    G0 = hc.jacobian(np.zeros(N))
+
+    def rhs(_, y):
+        x, v, W = y[:N], y[N : 2 * N], y[2 * N :]
+        return np.concatenate([v, hc.acceleration(x, v),
+                               hc.min_norm_correction(hc.jacobian(x), -(hc.jacobian(v) - G0) @ W)])
+
+    y0 = np.concatenate([chain.to_point(h0), chain.to_point(v0), chain.to_point(w0)])
+    sol = solve_ivp(rhs, (0, ts[-1]), y0, method="DOP853", rtol=1e-13, atol=1e-13, t_eval=ts)
+    assert sol.success
+    return chain.from_point(sol.y[2 * N :].T)
+
+
+@pytest.mark.parametrize("where", ["generic", "pole"])
+@pytest.mark.parametrize("masses", ["unit", "hinge masses", "rod densities"])
+def test_transport_agrees_with_an_independent_numpy_integration(where, masses):
+    """Over T = 10, from a generic start and from an exact pole of chart 0: the heyoka transport and a scipy
+    DOP853 integration of numpy code agree to 1e-10."""
+    kw = {"unit": {}, "hinge masses": {"hinge_masses": [0.5, 2.0, 1.0, 3.0]},
+          "rod densities": {"hinge_masses": [0.5, 2.0, 1.0, 3.0], "rod_densities": 0.7}}[masses]
+    chain = Chain(5, 3.4, **kw)
+    rng = np.random.default_rng(7)
+    if where == "pole":
+        h0 = _pole_start(5, 3.4)
+        v0 = _random_tangent(chain, h0, rng)
+    else:
+        H, V = sample_starts(chain, 1, 0.5, rng)
+        h0, v0 = H[0], V[0]
+    w0 = _random_tangent(chain, h0, rng)
+    ts = np.linspace(0, 10, 21)
+    pt = geometry.parallel_transport(chain, h0, v0, w0, 10.0, t_eval=ts)
+    reference = _numpy_transport(chain, h0, v0, w0, ts)
+    assert np.abs(pt.vectors - reference).max() <= 1e-10 * max(1.0, np.abs(w0).max())
+
+
+def test_transport_runs_in_every_precision():
+    """long double and real128 keep the isometry to their own precision (1e-16 and 1e-28 relative, over T = 5)."""
+    chain = Chain(4, 2.6, hinge_masses=[1.0, 2.0, 0.5])
+    rng = np.random.default_rng(2)
+    H, V = sample_starts(chain, 1, 0.5, rng)
+    w0 = _random_tangent(chain, H[0], rng)
+    for fp_type, bound in (("longdouble", 1e-16), ("real128", 1e-28)):
+        pt = geometry.parallel_transport(chain, H[0], V[0], w0, 5.0, fp_type=fp_type)
+        _, v, values = pt.carried(np.array([0.0, 5.0]))
+        W = values[0]["vectors"][:, 0]
+        K = pt.carried.geometry.K
+        norm = [W[i] @ K @ W[i] for i in range(2)]
+        angle = [W[i] @ K @ v[i] for i in range(2)]
+        assert float(abs(norm[1] - norm[0]) / norm[0]) <= bound
+        assert float(abs(angle[1] - angle[0]) / norm[0]) <= 10 * bound
+
+
+def _geodesic_end(hc: HingeConstraints, chain: Chain, x0, v0, ts):
+    from manifold.constrained import solve_constrained
+
+    sol = solve_constrained(ChainSystem(chain), x0, v0, ts[-1], t_eval=ts, dense=False)
+    return sol.points.astype(float)
+
+
+@pytest.mark.parametrize("n, L, masses", [(5, 3.3, [1.0, 0.3, 2.0, 1.0]), (6, 4.5, [1.0, 1.0, 4.0, 0.5, 1.0])])
+def test_jacobi_fields_agree_with_finite_differences_of_geodesics(n, L, masses):
+    """J(t) for J(0) = j0, D_t J(0) = w0 against the central difference of the geodesics from the start curve
+    (proj(x0 + s j0), P(v0 + s w0)), s = +-1e-5 (difference error ~ s^2): to 1e-7 relative over T = 5."""
+    chain = Chain(n, L, hinge_masses=masses)
+    rng = np.random.default_rng(11)
+    H, V = sample_starts(chain, 1, 0.5, rng)
+    j0, w0 = _random_tangent(chain, H[0], rng), _random_tangent(chain, H[0], rng)
+    ts = np.linspace(0, 5, 11)
+    jf = geometry.jacobi_field(chain, H[0], V[0], j0, w0, 5.0, t_eval=ts)
+    hc = HingeConstraints(chain)
+    x0, v0 = chain.to_point(H[0]), chain.to_point(V[0])
+    s = 1e-5
+    ends = []
+    for sign in (1, -1):
+        x = hc.project_position(x0 + sign * s * chain.to_point(j0))
+        v = hc.project_velocity(x, v0 + sign * s * chain.to_point(w0))
+        ends.append(_geodesic_end(hc, chain, x, v, ts))
+    difference = chain.from_point((ends[0] - ends[1]) / (2 * s))
+    assert np.abs(jf.field - difference).max() <= 1e-7 * np.abs(jf.field).max()
+
+
+def test_jacobi_field_solves_the_jacobi_equation_of_the_curvature_code_and_vanishes_at_the_conjugate_point():
+    """n = 4 (a 2-sphere): with J(0) = 0 and D_t J(0) = n0 perpendicular to v, J = y(t) n(t) with n the
+    transported unit normal and y'' + K(x(t)) |v|^2 y = 0, K the Gaussian curvature of the metric (Gauss equation
+    in the charts).  The transport and the field ride on one geodesic (two terms in one integrator); y from scipy
+    agrees to 1e-8, and J vanishes at y's first zero, the first conjugate point, to 1e-8 of its size."""
+    chain = Chain(4, 2.2, hinge_masses=[1.0, 3.0, 0.5])
+    metric = chain.metric()
+    rng = np.random.default_rng(5)
+    H, V = sample_starts(chain, 1, 0.5, rng)
+    x0, v0 = chain.to_point(H[0]), chain.to_point(V[0])
+    K = chain.ambient_metric
+    w = HingeConstraints(chain).project_velocity(x0, rng.normal(size=x0.shape))
+    n0 = w - (w @ K @ v0) / (v0 @ K @ v0) * v0
+    n0 /= np.sqrt(n0 @ K @ n0)
+    T = 12.0
+    carried = solve_carried(ChainSystem(chain), x0, v0, T, [ParallelTransport(n0), JacobiField(0 * n0, n0)])
+    speed2 = float(v0 @ K @ v0)
+
+    def rhs(t, y):
+        p, _ = carried.solution(np.array([t]))
+        return [y[1], -float(metric.gaussian_curvature(p.astype(float))[0]) * speed2 * y[0]]
+
+    def zero(t, y):
+        return y[0]
+    zero.direction = -1
+
+    ts = np.linspace(0, T, 25)
+    ref = solve_ivp(rhs, (0, T), [0.0, 1.0], method="DOP853", rtol=1e-12, atol=1e-13, t_eval=ts, events=zero)
+    assert ref.success and len(ref.t_events[0]) >= 1, "the geodesic must reach a conjugate point within T"
+    _, _, values = carried(ts)
+    normal, J = values[0]["vectors"][:, 0].astype(float), values[1]["field"][:, 0].astype(float)
+    y = np.einsum("ti,ij,tj->t", J, K, normal)
+    assert np.abs(y - ref.y[0]).max() <= 1e-8 * np.abs(ref.y[0]).max()
+    # J is normal: its tangential part (D_t J(0) is perpendicular to v) stays zero
+    residual = J - y[:, None] * normal
+    assert np.abs(residual).max() <= 1e-10 * np.abs(J).max()
+    t_conjugate = ref.t_events[0][0]
+    _, _, at = carried(np.array([t_conjugate]))
+    Jc = at[1]["field"][0, 0].astype(float)
+    assert np.sqrt(Jc @ K @ Jc) <= 1e-8 * np.abs(ref.y[0]).max()
+
+
+@given(n=st.integers(4, 6), seed=st.integers(0, 2**16), radius=st.sampled_from([0.05, 0.3, 0.8]),
+       pole=st.booleans())
+@settings(max_examples=10)
+def test_log_inverts_exp_and_distance_is_symmetric(n, seed, radius, pole):
+    """log(h0, exp(h0, v0)) = v0 to 1e-10 for |v0| below the injectivity radius, from a generic start or an exact
+    pole of chart 0, with spread masses; distance is symmetric to 1e-12."""
+    rng = np.random.default_rng(seed)
+    L = n - 0.6
+    chain = Chain(n, L, hinge_masses=rng.choice([0.2, 1.0, 5.0], size=n - 1))
+    h0 = _pole_start(n, L) if pole else sample_starts(chain, 1, 0.5, rng)[0][0]
+    v0 = _random_tangent(chain, h0, rng)
+    v0 *= radius / np.sqrt(2 * float(chain.kinetic_energy(v0)))
+    h1 = geometry.exp(chain, h0, v0)
+    result = geometry.log(chain, h0, h1)
+    assert np.abs(result.velocity - v0).max() <= 1e-10
+    assert abs(result.distance - radius) <= 1e-12
+    assert abs(geometry.distance(chain, h1, h0) - result.distance) <= 1e-12
+
+
+def _angle(chain: Chain, u: np.ndarray, w: np.ndarray) -> float:
+    g = _gram(chain, np.array([u, w]))
+    return float(np.arccos(np.clip(g[0, 1] / np.sqrt(g[0, 0] * g[1, 1]), -1, 1)))
+
+
+def test_holonomy_of_a_geodesic_triangle_is_its_angle_excess():
+    """n = 4: a vector transported around a geodesic triangle (sides from log) turns by the triangle's angle
+    excess (Gauss-Bonnet: both equal the enclosed integral of the Gaussian curvature), to 1e-8."""
+    chain = Chain(4, 2.5, hinge_masses=[1.0, 2.0, 0.7])
+    rng = np.random.default_rng(9)
+    A = sample_starts(chain, 1, 0.5, rng)[0][0]
+    B = geometry.exp(chain, A, 0.5 * _unit(chain, _random_tangent(chain, A, rng)))
+    C = geometry.exp(chain, A, 0.5 * _unit(chain, _random_tangent(chain, A, rng)))
+    vertices = [A, B, C]
+    logs = {(i, j): geometry.log(chain, vertices[i], vertices[j]).velocity for i in range(3) for j in range(3) if i != j}
+    excess = sum(_angle(chain, logs[(i, (i + 1) % 3)], logs[(i, (i + 2) % 3)]) for i in range(3)) - np.pi
+    w0 = w = _random_tangent(chain, A, rng)
+    for i in range(3):
+        side = geometry.parallel_transport(chain, vertices[i], logs[(i, (i + 1) % 3)], w, 1.0, t_eval=[0.0, 1.0])
+        assert np.abs(side.hinges[-1] - vertices[(i + 1) % 3]).max() <= 1e-12
+        w = side.vectors[-1]
+    assert abs(excess) >= 1e-3, "the triangle must enclose curvature for the test to say something"
+    assert abs(_angle(chain, w0, w) - abs(excess)) <= 1e-8
+
+
+def _unit(chain: Chain, v: np.ndarray) -> np.ndarray:
+    return v / np.sqrt(2 * float(chain.kinetic_energy(v)))
+
+
+def test_bad_inputs_are_refused_by_name():
+    chain = Chain(4, 2.6)
+    rng = np.random.default_rng(0)
+    H, V = sample_starts(chain, 1, 0.5, rng)
+    with pytest.raises(ValueError, match="vectors0 is not tangent"):
+        geometry.parallel_transport(chain, H[0], V[0], H[0], 1.0)
+    with pytest.raises(ValueError, match="vectors0 has n - 1 = 3 complex hinges"):
+        geometry.parallel_transport(chain, H[0], V[0], np.zeros((2, 5), complex), 1.0)
+    with pytest.raises(ValueError, match="field0 and derivative0 must have one shape"):
+        geometry.jacobi_field(chain, H[0], V[0], np.zeros(3, complex), np.zeros((2, 3), complex), 1.0)
+    with pytest.raises(ValueError, match="t_final"):
+        geometry.parallel_transport(chain, H[0], V[0], V[0], 0.0)
+    with pytest.raises(ValueError, match="max_iterations"):
+        geometry.log(chain, H[0], H[0], max_iterations=0)
+    with pytest.raises(TypeError, match="CarriedTerm"):
+        solve_carried(ChainSystem(chain), chain.to_point(H[0]), chain.to_point(V[0]), 1.0, ["transport"])
+    with pytest.raises(ValueError, match="projection"):
+        solve_carried(ChainSystem(chain), chain.to_point(H[0]), chain.to_point(V[0]), 1.0,
+                      [ParallelTransport(chain.to_point(V[0]))], stabilisation="projection")
+
+
+def test_the_carried_check_sees_a_drift():
+    """The invariant check of a carried term flags a transported vector whose norm moved (and passes it unmoved)."""
+    from manifold.carried import carried_violation
+    from manifold.constrained import ConstrainedGeometry
+
+    chain = Chain(4, 2.6)
+    rng = np.random.default_rng(0)
+    H, V = sample_starts(chain, 1, 0.5, rng)
+    x, v = chain.to_point(H[0]), chain.to_point(V[0])
+    w = chain.to_point(_random_tangent(chain, H[0], rng))
+    term, geo = ParallelTransport(w), ConstrainedGeometry(ChainSystem(chain), float)
+    first = np.concatenate([x, v, w])
+    slots = slice(12, 18)
+    assert carried_violation(term, geo, first[None, :], first, slots, [1.0], 10, 1e-16) is None
+    moved = np.concatenate([x, v, (1 + 1e-9) * w])[None, :]
+    message = carried_violation(term, geo, moved, first, slots, [1.0], 10, 1e-16)
+    assert message is not None and "parallel transport check failed at t = 1" in message
