@@ -32,7 +32,7 @@ from .chain import Chain
 from .constraints import ChainSystem, HingeConstraints, start_state
 
 __all__ = ["CarriedMotion", "JacobiFieldMotion", "LogResult", "TransportedVectors", "distance", "exp",
-           "jacobi_field", "log", "parallel_transport"]
+           "jacobi_field", "log", "parallel_transport", "tangent_basis"]
 
 
 class CarriedMotion:
@@ -246,16 +246,23 @@ class LogResult:
                 f"{self.iterations} Newton steps)")
 
 
-def _tangent_basis(chain: Chain, x0: NDArray) -> NDArray:
-    """A K-orthonormal basis of the tangent space at ``x0``, rows ``(n-2, N)`` (``n - 2`` for generic lengths)."""
-    constraints = HingeConstraints(chain)
-    G = constraints.jacobian(x0)
-    K = chain.ambient_metric
-    # the K-orthogonal complement of the rows of K^{-1} G^T: null space of G, orthonormalised in K
-    _, s, Vt = np.linalg.svd(G)
-    null = Vt[np.sum(s > s[0] * 1e-12):]
-    C = np.linalg.cholesky(null @ K @ null.T)
-    return np.linalg.solve(C, null)
+def tangent_basis(chain: Chain, hinges: ArrayLike) -> NDArray:
+    """A basis of the tangent space at ``hinges``, orthonormal in the kinetic metric: complex, ``(n-2, n-1)``.
+
+    The null space of the constraint Jacobian ``G`` (by SVD), orthonormalised
+    in ``K`` by a Cholesky factor of its Gram matrix; ``n - 2`` vectors for
+    generic lengths (``ValueError`` at a singular configuration, where ``G``
+    loses rank).
+    """
+    x = chain.to_point(chain.check_configuration(hinges, tol=1e-9)).astype(float)
+    _, s, Vt = np.linalg.svd(HingeConstraints(chain).jacobian(x))
+    rank = int(np.sum(s > s[0] * 1e-12))
+    if rank < chain.n:
+        raise ValueError(f"hinges is a singular configuration (the rod constraints have rank {rank} < n = {chain.n} "
+                         "there): no tangent space of dimension n - 2")
+    null = Vt[rank:]
+    C = np.linalg.cholesky(null @ chain.ambient_metric @ null.T)
+    return chain.from_point(np.linalg.solve(C, null))
 
 
 def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess: ArrayLike | None = None,
@@ -298,7 +305,7 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
     h0 = chain.check_configuration(hinges0, tol=1e-9)
     h1 = chain.check_configuration(hinges1, tol=1e-9)
     x0, x1 = chain.to_point(h0).astype(float), chain.to_point(h1).astype(float)
-    basis = _tangent_basis(chain, x0)
+    basis = chain.to_point(tangent_basis(chain, h0))
     K = chain.ambient_metric
     if velocity_guess is None:
         guess = basis.T @ (basis @ K @ (x1 - x0))

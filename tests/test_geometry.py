@@ -255,14 +255,36 @@ def _angle(chain: Chain, u: np.ndarray, w: np.ndarray) -> float:
     return float(np.arccos(np.clip(g[0, 1] / np.sqrt(g[0, 0] * g[1, 1]), -1, 1)))
 
 
-def test_holonomy_of_a_geodesic_triangle_is_its_angle_excess():
+def _curvature_integral(chain: Chain, A, B, C, nodes: int = 12) -> float:
+    """``int K dA`` over the geodesic triangle ABC, on the fan of geodesics ``F(u, s) = exp_A(s V(u))`` from ``A``
+    to the side BC (``V(u) = log_A(BC(u))``): Gauss-Legendre in ``u`` and ``s``, the area element
+    ``|F_s ^ F_u|`` from the Jacobi field ``F_u`` (zero at ``A``, matched to the side's velocity at ``s = 1``) and
+    ``K`` from the curvature code."""
+    x, wx = np.polynomial.legendre.leggauss(nodes)
+    u, wu = (x + 1) / 2, wx / 2
+    side = geometry.parallel_transport(chain, B, geometry.log(chain, B, C).velocity, np.zeros(chain.n - 1, complex),
+                                       1.0, t_eval=u)
+    basis = geometry.tangent_basis(chain, A)
+    metric, total = chain.metric(), 0.0
+    for k in range(nodes):
+        V = geometry.log(chain, A, side.hinges[k]).velocity
+        fan = geometry.jacobi_field(chain, A, V, np.zeros_like(basis), basis, 1.0, t_eval=np.append(u, 1.0))
+        c, *_ = np.linalg.lstsq(chain.to_point(fan.field[-1]).T, chain.to_point(side.velocities[k]), rcond=None)
+        g = _gram(chain, np.stack([fan.velocities[:-1], np.einsum("i,tin->tn", c, fan.field[:-1])], axis=1))
+        area = np.sqrt(g[:, 0, 0] * g[:, 1, 1] - g[:, 0, 1] ** 2)
+        total += wu[k] * np.sum(wu * metric.gaussian_curvature(chain.to_point(fan.hinges[:-1])) * area)
+    return float(total)
+
+
+def test_holonomy_of_a_geodesic_triangle_is_its_angle_excess_and_its_curvature_integral():
     """n = 4: a vector transported around a geodesic triangle (sides from log) turns by the triangle's angle
-    excess (Gauss-Bonnet: both equal the enclosed integral of the Gaussian curvature), to 1e-8."""
+    excess, which equals the enclosed integral of the Gaussian curvature (Gauss-Bonnet), to 1e-8.  Three routes:
+    transport; the angles between logs; Jacobi fields and the curvature code (the Gauss equation in the charts)."""
     chain = Chain(4, 2.5, hinge_masses=[1.0, 2.0, 0.7])
     rng = np.random.default_rng(9)
     A = sample_starts(chain, 1, 0.5, rng)[0][0]
-    B = geometry.exp(chain, A, 0.5 * _unit(chain, _random_tangent(chain, A, rng)))
-    C = geometry.exp(chain, A, 0.5 * _unit(chain, _random_tangent(chain, A, rng)))
+    B = geometry.exp(chain, A, 0.8 * _unit(chain, _random_tangent(chain, A, rng)))
+    C = geometry.exp(chain, A, 0.8 * _unit(chain, _random_tangent(chain, A, rng)))
     vertices = [A, B, C]
     logs = {(i, j): geometry.log(chain, vertices[i], vertices[j]).velocity for i in range(3) for j in range(3) if i != j}
     excess = sum(_angle(chain, logs[(i, (i + 1) % 3)], logs[(i, (i + 2) % 3)]) for i in range(3)) - np.pi
@@ -273,6 +295,7 @@ def test_holonomy_of_a_geodesic_triangle_is_its_angle_excess():
         w = side.vectors[-1]
     assert abs(excess) >= 1e-3, "the triangle must enclose curvature for the test to say something"
     assert abs(_angle(chain, w0, w) - abs(excess)) <= 1e-8
+    assert abs(_curvature_integral(chain, A, B, C) - excess) <= 1e-8
 
 
 def _unit(chain: Chain, v: np.ndarray) -> np.ndarray:
@@ -317,3 +340,16 @@ def test_the_carried_check_sees_a_drift():
     moved = np.concatenate([x, v, (1 + 1e-9) * w])[None, :]
     message = carried_violation(term, geo, moved, first, slots, [1.0], 10, 1e-16)
     assert message is not None and "parallel transport check failed at t = 1" in message
+
+
+@given(n=st.integers(3, 7), seed=st.integers(0, 2**16), density=st.sampled_from([0.0, 0.5]))
+@settings(max_examples=10)
+def test_tangent_basis_is_orthonormal_in_the_kinetic_metric_and_tangent(n, seed, density):
+    rng = np.random.default_rng(seed)
+    chain = Chain(n, n - 0.5, hinge_masses=rng.choice([0.1, 1.0, 10.0], size=n - 1), rod_densities=density)
+    h = sample_starts(chain, 1, 0.5, rng)[0][0]
+    E = geometry.tangent_basis(chain, h)
+    assert E.shape == (n - 2, n - 1)
+    assert np.abs(_gram(chain, E) - np.eye(n - 2)).max() <= 1e-13
+    x = chain.to_point(h)
+    assert HingeConstraints(chain).tangency_residual(np.broadcast_to(x, (n - 2, len(x))), chain.to_point(E)).max() <= 1e-13
