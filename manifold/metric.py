@@ -153,6 +153,69 @@ class InducedMetric:
             II[rows], Q[rows], _ = self._frame_form(int(i), a[rows])
         return lead, II, Q
 
+    def _frame_coordinates(self, lead: tuple[int, ...], Q: NDArray, *vectors: tuple[str, ArrayLike]) -> list[NDArray]:
+        """Coordinates in the orthonormal frame (columns of ``Q``, flattened points) of each named embedded tangent
+        vector, broadcast to the points' leading shape ``lead``; ``ValueError`` naming a vector that is zero, of
+        the wrong shape, or has a K-normal part above ``TANGENT_RTOL`` of its length."""
+        N, out = self.atlas.ambient_dim, []
+        for name, w in vectors:
+            w = real_array(name, w)
+            if w.shape[-1:] != (N,):
+                raise ValueError(f"{name} must have shape (..., {N}) like p, got {w.shape}")
+            w = np.broadcast_to(w, (*lead, N)).reshape(-1, N)
+            y = w @ self.K_root.T
+            x = np.einsum("...rk,...r->...k", Q, y)
+            size = np.linalg.norm(y, axis=-1)
+            if np.any(size == 0):
+                raise ValueError(f"{name} must be a nonzero tangent vector, got {name} = 0")
+            normal = np.linalg.norm(y - np.einsum("...rk,...k->...r", Q, x), axis=-1) / size
+            if np.any(normal > TANGENT_RTOL):
+                raise ValueError(f"{name} is not tangent at p: its K-normal part is {normal.max():.3g} of its length "
+                                 f"(at most {TANGENT_RTOL:g})")
+            out.append(x)
+        return out
+
+    def second_fundamental_form(self, p: ArrayLike, u: ArrayLike, v: ArrayLike) -> NDArray:
+        """``II(u, v)``, the K-normal part of the second derivative of the embedding along ``u`` and ``v``.
+
+        For a curve of the manifold through ``p`` with velocity ``v``, ``II(v, v)``
+        is its acceleration normal to the manifold: for a geodesic, all of it (the
+        constraint force per unit mass matrix, ``K x'' = K II(v, v)``).  Evaluated
+        in the best chart at each point (:func:`manifold.curvature.second_fundamental_form`).
+
+        Parameters
+        ----------
+        p
+            Point(s), shape ``(..., N)``.
+        u, v
+            Embedded tangent vectors at ``p``, shape ``(..., N)`` (checked as in
+            :meth:`sectional_curvature`).
+
+        Returns
+        -------
+        numpy.ndarray
+            Embedded normal vectors, shape ``(..., N)``; symmetric in ``u, v``.
+        """
+        lead, II, Q = self._best_frames(p)
+        x, y = self._frame_coordinates(lead, Q, ("u", u), ("v", v))
+        normal = np.einsum("nrij,ni,nj->nr", II, x, y)  # in the K-orthonormal coordinates C p
+        return np.linalg.solve(self.K_root, normal.T).T.reshape(*lead, self.atlas.ambient_dim)
+
+    def bending(self, p: ArrayLike) -> float | NDArray:
+        """``|II|^2 = sum_ij |II(e_i, e_j)|_K^2`` over a K-orthonormal frame ``e_i`` at point(s) ``p``: how much the
+        manifold bends in its ambient space (0 where it is flat in it); ``|II|^2 = |tr II|^2 - S``."""
+        lead, II, _ = self._best_frames(p)
+        B = np.sum(II**2, axis=(-3, -2, -1)).reshape(lead)
+        return float(B) if B.ndim == 0 else B
+
+    def stiffness(self, p: ArrayLike, v: ArrayLike) -> float | NDArray:
+        """``|II(v, v)|_K``: the normal acceleration of the geodesic through ``p`` with velocity ``v`` (``(..., N)``),
+        which the constraints must supply; for the chain, how hard its rods pull when it moves that way."""
+        lead, II, Q = self._best_frames(p)
+        (x,) = self._frame_coordinates(lead, Q, ("v", v))
+        S = np.linalg.norm(np.einsum("nrij,ni,nj->nr", II, x, x), axis=-1).reshape(lead)
+        return float(S) if S.ndim == 0 else S
+
     def scalar_curvature(self, p: ArrayLike) -> float | NDArray:
         """Scalar curvature ``S = g^{ad} g^{bc} R_abcd`` at point(s) ``p`` (``k(k-1)`` on the unit sphere ``S^k``).
 
@@ -194,23 +257,7 @@ class InducedMetric:
         if self.atlas.dim < 2:
             raise ValueError(f"a sectional curvature needs dimension >= 2, got dimension {self.atlas.dim}")
         lead, II, Q = self._best_frames(p)
-        N = self.atlas.ambient_dim
-        frame = []
-        for name, w in (("u", u), ("v", v)):
-            w = real_array(name, w)
-            if w.shape[-1:] != (N,):
-                raise ValueError(f"{name} must have shape (..., {N}) like p, got {w.shape}")
-            w = np.broadcast_to(w, (*lead, N)).reshape(-1, N)
-            y = w @ self.K_root.T
-            x = np.einsum("...rk,...r->...k", Q, y)
-            size = np.linalg.norm(y, axis=-1)
-            if np.any(size == 0):
-                raise ValueError(f"{name} must be a nonzero tangent vector, got {name} = 0")
-            normal = np.linalg.norm(y - np.einsum("...rk,...k->...r", Q, x), axis=-1) / size
-            if np.any(normal > TANGENT_RTOL):
-                raise ValueError(f"{name} is not tangent at p: its K-normal part is {normal.max():.3g} of its length "
-                                 f"(at most {TANGENT_RTOL:g})")
-            frame.append(x)
+        frame = self._frame_coordinates(lead, Q, ("u", u), ("v", v))
         x, y = frame
         # Numerical trap: |u|^2 |v|^2 - <u, v>^2 cancels for nearly parallel vectors.  Gram-Schmidt
         # (y_perp = y - (x.y / x.x) x) leaves R(x, y, y, x) unchanged and gives the denominator

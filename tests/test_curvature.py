@@ -227,3 +227,52 @@ def test_curvature_refuses_bad_input():
         five.integrate(lambda p: np.ones(len(p)), 0, five.atlas.parameter_box, (4, 0, 4))
     with pytest.raises(ValueError, match="box and nodes need dim = 3 entries, got 3, 3 and 2"):
         five.integrate(lambda p: np.ones(len(p)), 0, five.atlas.parameter_box, (4, 4))
+
+
+# -- the second fundamental form, bending and stiffness ---------------------------------------------------------
+@given(seed=st.integers(0, 2**32 - 1), radius=st.floats(0.1, 10.0))
+def test_second_fundamental_form_of_the_round_sphere(seed, radius):
+    """On the sphere of radius r (K = r^2 I on the unit sphere's points): II(u, v) = -<u, v> p (the inward normal
+    times <u, v>_K / r^2 in ambient units), |II|^2 = 2 / r^2, and the stiffness |II(v, v)|_K = |v|_K^2 / r."""
+    rng = np.random.default_rng(seed)
+    p = random_sphere_points(rng, 16)
+    metric = InducedMetric(sphere_metric().atlas, radius**2 * np.eye(3))
+    u, v = np.cross(p, rng.standard_normal((16, 3))), np.cross(p, rng.standard_normal((16, 3)))
+    II = metric.second_fundamental_form(p, u, v)
+    assert np.allclose(II, -np.sum(u * v, axis=1)[:, None] * p, rtol=0, atol=1e-12 * np.abs(II).max())
+    assert np.allclose(metric.bending(p), 2 / radius**2, rtol=1e-12, atol=0)
+    speed2 = radius**2 * np.sum(v * v, axis=1)
+    assert np.allclose(metric.stiffness(p, v), speed2 / radius, rtol=1e-12, atol=0)
+
+
+@given(L=base_lengths(5), seed=st.integers(0, 2**32 - 1), density=st.sampled_from([0.0, 0.6]))
+@settings(max_examples=25)
+def test_second_fundamental_form_of_a_chain_is_the_constraints_normal_acceleration(L, seed, density):
+    """The charts' route (second derivatives of the suspension chart, best chart) against the constraints' route
+    (no chart): II(u, w) = -K^-1 G^T (G K^-1 G^T)^-1 (u^T nabla^2 c w), and so II(v, v) is the geodesic's
+    acceleration, |II|^2 the sum over a K-orthonormal basis (linkage.geometry.tangent_basis).  Both routes lose
+    about eps / gap, the gap of L to the nearer end of its range (measured 1.3e-9 relative at a gap of 1e-7)."""
+    from linkage.constraints import HingeConstraints
+    from linkage.geometry import tangent_basis
+
+    rng = np.random.default_rng(seed)
+    chain = Chain(5, L, hinge_masses=rng.choice([0.2, 1.0, 5.0], size=4), rod_densities=density)
+    metric, hc = chain.metric(), HingeConstraints(chain)
+    h = sample_configurations(chain, 1, rng)[0]
+    x = chain.to_point(h)
+    E = chain.to_point(tangent_basis(chain, h))  # (3, 8)
+    G0 = hc.jacobian(np.zeros_like(x))
+
+    def constraint_form(a, b):
+        return hc.min_norm_correction(hc.jacobian(x), -(hc.jacobian(a) - G0) @ b)  # dG[a] b; G is affine in x
+
+    u, w = rng.standard_normal(3) @ E, rng.standard_normal(3) @ E
+    rtol = 1e-10 + 10 * np.finfo(float).eps / min(L - 3, 5 - L)
+    II = metric.second_fundamental_form(x, u, w)
+    scale = np.linalg.norm(constraint_form(u, u)) + np.linalg.norm(constraint_form(w, w))
+    assert np.abs(II - constraint_form(u, w)).max() <= rtol * scale
+    assert np.abs(metric.second_fundamental_form(x, w, w) - hc.acceleration(x, w)).max() <= rtol * scale
+    K = chain.ambient_metric
+    bending = sum(constraint_form(a, b) @ K @ constraint_form(a, b) for a in E for b in E)
+    assert abs(metric.bending(x) - bending) <= rtol * bending
+    assert abs(metric.stiffness(x, w) - np.sqrt(constraint_form(w, w) @ K @ constraint_form(w, w))) <= rtol * scale
