@@ -17,6 +17,7 @@ not a geodesic between two points), ``log`` and ``distance``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -64,7 +65,7 @@ class CarriedMotion:
         return (f"{type(self).__name__}({self.chain!r}, t = 0 -> {float(sol.t_reached):g}, {len(self.times)} times, "
                 f"{sol.n_steps} steps, energy error {sol.relative_energy_error:.1e})")
 
-    def __call__(self, t: ArrayLike) -> "CarriedMotion":
+    def __call__(self, t: ArrayLike) -> CarriedMotion:
         """The same motion sampled at the time(s) ``t`` (1-d, within ``[0, T]``)."""
         ts = np.atleast_1d(np.asarray(t, dtype=float))
         if ts.ndim != 1:
@@ -119,9 +120,10 @@ def _times(t_eval: ArrayLike | None, carried: CarriedSolution) -> NDArray:
     return np.asarray(t_eval, dtype=float)
 
 
-def _solve(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, term_of: Any, t_eval: ArrayLike | None,
+def _solve(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, term_of: Callable[[NDArray], CarriedTerm],
+           t_eval: ArrayLike | None,
            tangent_tol: float, options: dict[str, Any]) -> tuple[CarriedSolution, NDArray]:
-    _, x0, v0, T = start_state(chain, hinges0, velocity0, T, tangent_tol, False)
+    _, x0, v0, T = start_state(chain, hinges0, velocity0, check_real("T", T, nonzero=True), tangent_tol, False)
     if t_eval is not None:
         t_eval = check_time_grid(t_eval, T)
     term: CarriedTerm = term_of(x0)
@@ -129,7 +131,8 @@ def _solve(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, ter
     return carried, _times(t_eval, carried)
 
 
-def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, **options: Any) -> NDArray:
+def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, *, tangent_tol: float = 1e-9,
+        **options: Any) -> NDArray:
     """The exponential map: the hinges at time ``t`` of the geodesic from ``hinges0`` with velocity ``velocity0``.
 
     Parameters
@@ -140,6 +143,8 @@ def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, 
         Complex hinges (closing to 1e-9) and a tangent hinge velocity, shape ``(n-1,)``.
     t
         The time (nonzero; negative runs backward).  ``exp(chain, h, v, t) = exp(chain, h, t v, 1)``.
+    tangent_tol
+        The tangency tolerance of ``velocity0`` (:func:`linkage.constraints.start_state`).
     **options
         Passed to :func:`manifold.constrained.solve_constrained` (``fp_type``, ``tol``, ``throw``, ...).
 
@@ -148,7 +153,10 @@ def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, 
     numpy.ndarray
         Complex hinges, shape ``(n-1,)`` (rounded to complex128).
     """
-    _, x0, v0, t = start_state(chain, hinges0, velocity0, t, options.pop("tangent_tol", 1e-9), False)
+    for name in ("dense", "t_eval", "carry"):
+        if name in options:
+            raise TypeError(f"exp does not take {name}= (it returns the end point; see parallel_transport for a path)")
+    _, x0, v0, t = start_state(chain, hinges0, velocity0, check_real("t", t, nonzero=True), tangent_tol, False)
     sol = solve_constrained(ChainSystem(chain), x0, v0, t, dense=False, **options)
     return chain.from_point(sol.end_state()[0].astype(float))
 
@@ -236,14 +244,30 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
 
 
 class LogResult:
-    """:func:`log`'s answer with its record: :attr:`velocity`, :attr:`distance`, :attr:`residual`, :attr:`iterations`."""
+    """:func:`log`'s answer with its record.
 
-    def __init__(self, velocity: NDArray, distance: float, residual: float, iterations: int) -> None:
-        self.velocity, self.distance, self.residual, self.iterations = velocity, distance, residual, iterations
+    Attributes
+    ----------
+    velocity
+        The velocity ``v`` at ``hinges0`` (complex, ``(n-1,)``) with ``exp(hinges0, v, 1) = hinges1``.
+    distance
+        Its kinetic length ``sqrt(v^H A v)``: the length of that geodesic (the distance below the injectivity radius).
+    residual
+        ``|exp(hinges0, v, 1) - hinges1|`` at the answer.
+    iterations
+        Newton steps taken for it.
+    candidates
+        The lengths of every geodesic found, one per first guess that converged (the shortest is returned).
+    """
+
+    def __init__(self, velocity: NDArray, distance: float, residual: float, iterations: int,
+                 candidates: list[float]) -> None:
+        self.velocity, self.distance, self.residual = velocity, distance, residual
+        self.iterations, self.candidates = iterations, candidates
 
     def __repr__(self) -> str:
         return (f"LogResult(distance {self.distance:.6g}, |exp(v) - h1| = {self.residual:.1e}, "
-                f"{self.iterations} Newton steps)")
+                f"{self.iterations} Newton steps, {len(self.candidates)} geodesic(s) found)")
 
 
 def tangent_basis(chain: Chain, hinges: ArrayLike) -> NDArray:
@@ -269,13 +293,24 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
         rtol: float = 1e-12, max_iterations: int = 30, **options: Any) -> LogResult:
     """The logarithm: a velocity ``v0`` at ``hinges0`` with ``exp(chain, hinges0, v0, 1) = hinges1``.
 
-    Newton's method on the shooting map ``v -> exp(v)``: its derivative along a
-    tangent basis ``e_i`` at the start is the Jacobi fields with ``J(0) = 0``,
-    ``D_t J(0) = e_i`` at ``t = 1``, integrated with the geodesic (one solve per
-    step), and the step is the least-squares solution of ``exp(v) - h1``
-    against them.  Below the injectivity radius the geodesic is unique and
-    minimal; beyond, the answer is the geodesic Newton converges to from the
-    guess, which need not be the shortest.
+    Newton's method on the shooting map ``c -> exp(sum_i c_i e_i)`` in the
+    coordinates of a K-orthonormal tangent basis ``e_i`` at the start
+    (:func:`tangent_basis`): its derivative is the Jacobi fields with
+    ``J(0) = 0``, ``D_t J(0) = e_i`` at ``t = 1``, integrated with the geodesic
+    (one solve per step); the step is the least-squares solution against the
+    residual ``exp(v) - h1``, halved until the residual decreases (a full step
+    from a poor guess can overshoot by a turn of the manifold).  ``hinges1`` is
+    first projected onto the configuration space (it closes only to 1e-9, and no
+    geodesic ends closer to it than that).
+
+    Each first guess (``velocity_guess`` if given, and the K-orthogonal
+    projection of ``hinges1 - hinges0`` onto the tangent space at ``hinges0``)
+    is run; if none converges, a continuation follows the chord from
+    ``hinges0`` to ``hinges1`` projected onto the configuration space, each
+    point's log the first guess of the next.  The shortest geodesic found is returned.  Below the injectivity
+    radius it is the minimal one; beyond, it is the shortest found, not
+    necessarily the shortest there is, and :attr:`LogResult.candidates` lists
+    the lengths of all found.
 
     Parameters
     ----------
@@ -284,55 +319,114 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
     hinges0, hinges1
         Complex configurations of the same connected component, shape ``(n-1,)``.
     velocity_guess
-        A start for Newton's method; default the K-orthogonal projection of
-        ``hinges1 - hinges0`` onto the tangent space at ``hinges0`` (good for
-        nearby points).
+        A first guess for Newton's method: a tangent velocity at ``hinges0``, shape ``(n-1,)``.
     rtol
-        Convergence: ``|exp(v) - h1| <= rtol`` times the chain's mean rod length.
+        Convergence: ``|exp(v) - h1| <= rtol`` times the chain's mean rod length, ``> 0``.
     max_iterations
-        Newton steps at most; :class:`RuntimeError` (with the best residual) beyond.
+        Newton steps at most per guess, ``>= 1``.
     **options
-        Passed to :func:`manifold.carried.solve_carried` (``fp_type``, ``tol``).
+        Passed to :func:`manifold.carried.solve_carried` (``tol``, ``rate``).  The solve runs in
+        float64 (the targets are float64 configurations).
 
     Returns
     -------
     LogResult
-        ``velocity`` (complex, ``(n-1,)``), ``distance`` (its kinetic length
-        ``sqrt(v^H A v)``), the final ``residual`` and the ``iterations`` taken.
+        ``velocity``, ``distance``, ``residual``, ``iterations`` and ``candidates``.
+
+    Raises
+    ------
+    RuntimeError
+        If neither a guess nor the continuation converges, with the best residual of each (``hinges1`` may lie
+        in another connected component, or beyond where Newton's method reaches from these guesses).
     """
     rtol = check_real("rtol", rtol, positive=True)
     max_iterations = check_positive_int("max_iterations", max_iterations)
+    for name in ("fp_type", "dense", "t_eval", "carry"):
+        if name in options:
+            raise TypeError(f"log does not take {name}= (it shoots in float64 with dense output)")
     h0 = chain.check_configuration(hinges0, tol=1e-9)
-    h1 = chain.check_configuration(hinges1, tol=1e-9)
-    x0, x1 = chain.to_point(h0).astype(float), chain.to_point(h1).astype(float)
-    basis = chain.to_point(tangent_basis(chain, h0))
+    x0 = chain.to_point(h0).astype(float)
+    constraints = HingeConstraints(chain)
+    x1 = constraints.project_position(chain.to_point(chain.check_configuration(hinges1, tol=1e-9)).astype(float))
+    basis = chain.to_point(tangent_basis(chain, h0))  # (n-2, N), K-orthonormal
     K = chain.ambient_metric
-    if velocity_guess is None:
-        guess = basis.T @ (basis @ K @ (x1 - x0))
-    else:
-        guess, _ = _tangent_vectors(chain, x0, velocity_guess, "velocity_guess", 1e-9)
-        guess = guess[0]
-    c = basis @ K @ guess  # coordinates in the K-orthonormal basis
-    scale = float(np.mean(chain.lengths))
-    best = np.inf
+    guesses = []
+    if velocity_guess is not None:
+        guess, single = _tangent_vectors(chain, x0, velocity_guess, "velocity_guess", 1e-9)
+        if not single:
+            raise ValueError(f"velocity_guess must have shape (n - 1,) = ({chain.n - 1},), got "
+                             f"{np.shape(velocity_guess)}")
+        guesses.append(basis @ K @ guess[0])
+    guesses.append(basis @ K @ (x1 - x0))  # the chord's tangential part, in the basis's coordinates
+    target = rtol * float(np.mean(chain.lengths))
     system = ChainSystem(chain)
-    for iteration in range(1, max_iterations + 1):
-        v = basis.T @ c
-        if not np.any(v):  # hinges1 == hinges0: the zero velocity, no geodesic to integrate
-            return LogResult(chain.from_point(v), 0.0, float(np.linalg.norm(x1 - x0)), iteration - 1)
-        carried = solve_carried(system, x0, v, 1.0, [JacobiField(np.zeros_like(basis), basis)], **options)
-        x, _, values = carried(np.array([1.0]))
-        residual = x[0].astype(float) - x1
-        best = min(best, float(np.linalg.norm(residual)))
-        if best <= rtol * scale:
-            speed = float(np.sqrt(v @ K @ v))
-            return LogResult(chain.from_point(v), speed, best, iteration - 1)
-        jac = values[0]["field"][0].astype(float).T  # (N, n-2): d exp / d c
+
+    def shooting(goal: NDArray) -> Callable[[NDArray], tuple[NDArray, NDArray]]:
+        def shoot(c: NDArray) -> tuple[NDArray, NDArray]:
+            """The residual ``exp(c) - goal`` and its derivative ``(N, n-2)``."""
+            carried = solve_carried(system, x0, basis.T @ c, 1.0, [JacobiField(np.zeros_like(basis), basis)],
+                                    **options)
+            x, _, values = carried(np.array([1.0]))
+            return x[0].astype(float) - goal, values[0]["field"][0].astype(float).T
+        return shoot
+
+    if np.linalg.norm(x1 - x0) <= target:  # the same configuration: the zero velocity, no geodesic to integrate
+        return LogResult(np.zeros(chain.n - 1, dtype=complex), 0.0, float(np.linalg.norm(x1 - x0)), 0, [0.0])
+    found, misses = [], []
+    for c in guesses:
+        c, size, iterations = _newton(shooting(x1), c, target, max_iterations)
+        if size <= target:
+            v = basis.T @ c
+            found.append((float(np.sqrt(v @ K @ v)), v, size, iterations))
+        else:
+            misses.append(size)
+    if not found:  # continuation: follow the chord, projected onto the configuration space, from hinges0
+        c, size, iterations = np.zeros(len(basis)), np.inf, 0
+        s, ds = 0.0, 0.25
+        while ds >= 1.0 / 64:
+            s_next = min(1.0, s + ds)
+            goal = x1 if s_next == 1.0 else constraints.project_position(x0 + s_next * (x1 - x0))
+            trial, size, steps = _newton(shooting(goal), c, target, max_iterations)
+            if size > target:
+                ds /= 2
+                continue
+            c, s, iterations, ds = trial, s_next, iterations + steps, 1.5 * ds
+            if s == 1.0:
+                v = basis.T @ c
+                found.append((float(np.sqrt(v @ K @ v)), v, size, iterations))
+                break
+        else:
+            misses.append(size)
+    if not found:
+        raise RuntimeError(f"log did not converge: the best |exp(v) - hinges1| from each first guess was "
+                           f"{', '.join(f'{m:.3g}' for m in misses)} (> rtol * mean rod length = {target:.3g}); "
+                           "hinges1 may lie in another connected component, or too far from these guesses: pass "
+                           "a velocity_guess closer to the geodesic wanted")
+    length, v, size, iterations = min(found, key=lambda f: f[0])
+    return LogResult(chain.from_point(v), length, size, iterations, sorted(f[0] for f in found))
+
+
+def _newton(shoot: Callable[[NDArray], tuple[NDArray, NDArray]], c: NDArray, target: float,
+            max_iterations: int) -> tuple[NDArray, float, int]:
+    """Gauss-Newton on ``shoot(c) = (residual, derivative)`` from ``c``, each step halved (up to 8 times) until the
+    residual decreases; stops at ``|residual| <= target``, after ``max_iterations`` steps, or when no halving
+    decreases it.  Returns ``(c, |residual|, steps taken)``."""
+    residual, jac = shoot(c)
+    size = float(np.linalg.norm(residual))
+    for iteration in range(max_iterations):
+        if size <= target:
+            return c, size, iteration
         step, *_ = np.linalg.lstsq(jac, -residual, rcond=None)
-        c = c + step
-    raise RuntimeError(f"log did not converge in {max_iterations} Newton steps: the best |exp(v) - hinges1| was "
-                       f"{best:.3g} (> rtol * mean rod length = {rtol * scale:.3g}); pass a velocity_guess closer to "
-                       "the geodesic wanted, or points closer together")
+        for _ in range(8):
+            trial = shoot(c + step)
+            if np.linalg.norm(trial[0]) < size:
+                break
+            step = step / 2
+        else:  # no decrease along the Newton direction: stagnation at the residual reached
+            return c, size, iteration
+        c, (residual, jac) = c + step, trial
+        size = float(np.linalg.norm(residual))
+    return c, size, max_iterations
 
 
 def distance(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, **options: Any) -> float:

@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .artefacts import ArtefactStore
-from .carried import CarriedTerm, carried_violation
+from .carried import CarriedTerm, carried_violation, slot_ranges
 from .expression_linalg import ldl_solve
 from .metric import InducedMetric
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
@@ -550,7 +550,14 @@ class ConstrainedGeometry:
         self.eps = unit_roundoff(fp_type)
         self.speed_scale = speed_scale(system)
         self.K = as_fp(np.asarray(system.metric_matrix, dtype=float), fp_type)  # float64 entries: exact in fp_type
-        self._compiled = comp
+        self.system, self._compiled = system, comp
+
+    def __getstate__(self) -> dict:
+        # the compiled store holds locks: a pickled geometry (a result shipped to a worker) rebuilds from its system
+        return {"system": self.system, "fp": self.fp}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["system"], state["fp"])  # type: ignore[misc]
 
     def __call__(self, x: NDArray, v: NDArray, r: NDArray | None = None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
         """Batched ``(c, G v, correction(r), E)`` for ``x, v`` of shape ``(B, N)``."""
@@ -571,7 +578,7 @@ class ConstrainedGeometry:
         return w - self(x, w, Gw)[2]
 
     def bilinear(self, x: NDArray, v: NDArray, w: NDArray) -> NDArray:
-        """Rows ``(B, N)``: ``v^T (nabla^2 c_k) w``, shape ``(B, m)`` (:meth:`ConstrainedPieces.bilinear`)."""
+        """``v^T (nabla^2 c_k) w`` for rows ``x, v, w`` of shape ``(B, N)``: shape ``(B, m)`` (:meth:`ConstrainedPieces.bilinear`)."""
         cf = self._compiled.bilinear(self.fp)
         args = np.ascontiguousarray(as_fp(np.concatenate([x, v, w], axis=1).T, self.fp))
         return cf(args, pars=np.ascontiguousarray(np.repeat(self.pars[: cf.nparams, None], x.shape[0], axis=1))).T
@@ -818,10 +825,7 @@ def solve_constrained(
     x, v, E0, alpha = xs[0], vs[0], E0s[0], float(alphas[0])
     carried = np.concatenate([np.zeros(0, dtype=x.dtype)] + [term.start(geo, x, v) for term in carry])
     first = np.concatenate([x, v, carried])
-    slots, offset = [], 2 * N
-    for term in carry:
-        slots.append(slice(offset, offset + term.size(N)))
-        offset += term.size(N)
+    slots = slot_ranges(carry, N)
 
     sol = GeodesicSolution(metric, fp_type, f"constrained-taylor ({stabilisation})", (0.0, t_final), {})
     sol.t_eval, sol.ambient_dim = grid, N

@@ -107,12 +107,12 @@ class JacobiField(CarriedTerm):
                    y: NDArray) -> tuple[NDArray, NDArray]:
         J, U = self._pairs(y, geometry.N)
         KU, KJ = U @ geometry.K, J @ geometry.K
-        along = np.sum(KU * v[:, None, :], axis=-1).astype(float)  # <U, v> = <D_t J, v> for a tangent v
+        along = np.sum(KU * v[:, None, :], axis=-1)  # <U, v> = <D_t J, v> for a tangent v
         speed = np.sqrt(np.abs(geometry.inner(v, v).astype(float)))
         size_U = np.sqrt(np.abs(np.sum(KU * U, axis=-1).astype(float)))
         size_J = np.sqrt(np.abs(np.sum(KJ * J, axis=-1).astype(float)))
         a, b = np.triu_indices(len(self.fields), 1)
-        omega = (KU[:, a] * J[:, b] - KJ[:, a] * U[:, b]).sum(axis=-1).astype(float)
+        omega = (KU[:, a] * J[:, b] - KJ[:, a] * U[:, b]).sum(axis=-1)
         values = np.concatenate([along, omega], axis=1)
         scales = np.concatenate([size_U * speed[:, None], size_U[:, a] * size_J[:, b] + size_J[:, a] * size_U[:, b]],
                                 axis=1)

@@ -19,7 +19,7 @@ Geodesics are great circles, an exact reference.
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Hashable, Sequence
 from typing import Any
 
 import heyoka as hy
@@ -49,13 +49,13 @@ class StereographicFamily(ChartFamily):
     def key(self) -> Hashable:
         return ("stereographic-S2", self.variant)
 
-    def point_expressions(self, a: list[hy.expression], fp_type: Any) -> list[hy.expression]:
+    def point_expressions(self, a: Sequence[hy.expression], fp_type: Any) -> list[hy.expression]:
         u, v = a
         r2 = u * u + v * v
         inv = 1.0 / (r2 + 1.0)
         return [2.0 * u * inv, 2.0 * v * inv, (r2 - 1.0) * inv]
 
-    def quality_expressions(self, a: list[hy.expression]) -> list[hy.expression]:
+    def quality_expressions(self, a: Sequence[hy.expression]) -> list[hy.expression]:
         u, v = a
         return [1.0 / (1.0 + u * u + v * v)]
 

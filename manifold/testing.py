@@ -84,7 +84,7 @@ class ConformanceReport:
             raise AssertionError(repr(self))
 
 
-def _relative(a: NDArray, b: NDArray, scale: NDArray | float) -> NDArray:
+def _relative(a: NDArray, b: NDArray, scale: Any) -> NDArray:
     return np.linalg.norm(np.asarray(a) - np.asarray(b), axis=-1) / np.maximum(scale, np.finfo(float).tiny)
 
 

@@ -89,8 +89,8 @@ class ParallelTransport(CarriedTerm):
                    y: NDArray) -> tuple[NDArray, NDArray]:
         # the Gram matrix of (W_1, ..., W_k, v): each entry judged relative to the product of the two norms
         F = np.concatenate([self._vectors(y, geometry.N), v[:, None, :]], axis=1)
-        gram = ((F @ geometry.K) @ F.transpose(0, 2, 1)).astype(float)
-        norms = np.sqrt(np.abs(np.diagonal(gram, axis1=1, axis2=2)))
+        gram = (F @ geometry.K) @ F.transpose(0, 2, 1)
+        norms = np.sqrt(np.abs(np.diagonal(gram, axis1=1, axis2=2).astype(float)))
         i, j = np.triu_indices(F.shape[1])
         return gram[:, i, j], (norms[:, :, None] * norms[:, None, :])[:, i, j]
 

