@@ -44,6 +44,7 @@ from charts.chain_geometry import (
 )
 from manifold import InducedMetric
 
+from .diagonal_path import DiagonalPath, diagonal_path
 from .diagonals import DiagonalSpace, diagonals, from_diagonals
 from .lengths import validate_lengths
 from .topology import MAX_RODS, RTOL, Topology, longest_side, topology
@@ -189,6 +190,19 @@ class Chain:
     def diagonals(self, hinges: ArrayLike) -> tuple[NDArray, NDArray]:
         """``(x, flips)`` of closed configurations (:func:`linkage.diagonals.diagonals`)."""
         return diagonals(self.lengths, self.L, self.as_hinges(hinges))
+
+    def path(self, hinges0: ArrayLike, hinges1: ArrayLike) -> DiagonalPath:
+        """A continuous path of closed configurations from ``hinges0`` to ``hinges1`` (each ``(n-1,)``, closing to
+        1e-9): straight in the diagonals with the flips fixed, a flip changed where its fan triangle is flat
+        (:func:`linkage.diagonal_path.diagonal_path`); ``path(s)`` gives the hinges at ``s`` in ``[0, 1]``.
+        Raises :class:`~linkage.diagonal_path.DifferentComponentsError` (a ``ValueError``) if they lie in
+        different connected components."""
+        h0 = self.check_configuration(hinges0, tol=1e-9)
+        h1 = self.check_configuration(hinges1, tol=1e-9)
+        for name, h in (("hinges0", h0), ("hinges1", h1)):
+            if h.shape != (self.n - 1,):
+                raise ValueError(f"{name} must be one configuration, shape (n - 1,) = ({self.n - 1},), got {h.shape}")
+        return diagonal_path(self.diagonal_space(), h0, h1)
 
     # -- mass model ---------------------------------------------------------------
     @property

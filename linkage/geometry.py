@@ -305,9 +305,9 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
 
     Each first guess (``velocity_guess`` if given, and the K-orthogonal
     projection of ``hinges1 - hinges0`` onto the tangent space at ``hinges0``)
-    is run; if none converges, a continuation follows the chord from
-    ``hinges0`` to ``hinges1`` projected onto the configuration space, each
-    point's log the first guess of the next.  The shortest geodesic found is returned.  Below the injectivity
+    is run; if none converges, a continuation follows the feasible path from
+    ``hinges0`` to ``hinges1`` that is straight in the diagonals
+    (:meth:`linkage.Chain.path`), each point's log the first guess of the next.  The shortest geodesic found is returned.  Below the injectivity
     radius it is the minimal one; beyond, it is the shortest found, not
     necessarily the shortest there is, and :attr:`LogResult.candidates` lists
     the lengths of all found.
@@ -335,9 +335,10 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
 
     Raises
     ------
+    linkage.diagonal_path.DifferentComponentsError
+        If ``hinges1`` lies in another connected component (a ``ValueError``).
     RuntimeError
-        If neither a guess nor the continuation converges, with the best residual of each (``hinges1`` may lie
-        in another connected component, or beyond where Newton's method reaches from these guesses).
+        If neither a guess nor the continuation converges, with the best residual of each.
     """
     rtol = check_real("rtol", rtol, positive=True)
     max_iterations = check_positive_int("max_iterations", max_iterations)
@@ -372,6 +373,7 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
 
     if np.linalg.norm(x1 - x0) <= target:  # the same configuration: the zero velocity, no geodesic to integrate
         return LogResult(np.zeros(chain.n - 1, dtype=complex), 0.0, float(np.linalg.norm(x1 - x0)), 0, [0.0])
+    path = chain.path(h0, chain.from_point(x1))  # raises DifferentComponentsError first, at the cost of a few LPs
     found, misses = [], []
     for c in guesses:
         c, size, iterations = _newton(shooting(x1), c, target, max_iterations)
@@ -380,12 +382,12 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
             found.append((float(np.sqrt(v @ K @ v)), v, size, iterations))
         else:
             misses.append(size)
-    if not found:  # continuation: follow the chord, projected onto the configuration space, from hinges0
+    if not found:  # continuation along the feasible path from hinges0 to hinges1, straight in the diagonals
         c, size, iterations = np.zeros(len(basis)), np.inf, 0
         s, ds = 0.0, 0.25
         while ds >= 1.0 / 64:
             s_next = min(1.0, s + ds)
-            goal = x1 if s_next == 1.0 else constraints.project_position(x0 + s_next * (x1 - x0))
+            goal = x1 if s_next == 1.0 else chain.to_point(path(s_next)).astype(float)
             trial, size, steps = _newton(shooting(goal), c, target, max_iterations)
             if size > target:
                 ds /= 2
@@ -400,8 +402,7 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
     if not found:
         raise RuntimeError(f"log did not converge: the best |exp(v) - hinges1| from each first guess was "
                            f"{', '.join(f'{m:.3g}' for m in misses)} (> rtol * mean rod length = {target:.3g}); "
-                           "hinges1 may lie in another connected component, or too far from these guesses: pass "
-                           "a velocity_guess closer to the geodesic wanted")
+                           "pass a velocity_guess closer to the geodesic wanted")
     length, v, size, iterations = min(found, key=lambda f: f[0])
     return LogResult(chain.from_point(v), length, size, iterations, sorted(f[0] for f in found))
 
@@ -409,12 +410,17 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
 def _newton(shoot: Callable[[NDArray], tuple[NDArray, NDArray]], c: NDArray, target: float,
             max_iterations: int) -> tuple[NDArray, float, int]:
     """Gauss-Newton on ``shoot(c) = (residual, derivative)`` from ``c``, each step halved (up to 8 times) until the
-    residual decreases; stops at ``|residual| <= target``, after ``max_iterations`` steps, or when no halving
-    decreases it.  Returns ``(c, |residual|, steps taken)``."""
+    residual decreases; stops at ``|residual| <= target`` (after one more full step, kept if it decreases the
+    residual), after ``max_iterations`` steps, or when no halving decreases it.  Returns ``(c, |residual|, steps
+    taken)``."""
     residual, jac = shoot(c)
     size = float(np.linalg.norm(residual))
     for iteration in range(max_iterations):
-        if size <= target:
+        if size <= target:  # one more step, kept if it helps: at quadratic convergence it reaches rounding
+            step, *_ = np.linalg.lstsq(jac, -residual, rcond=None)
+            polished = shoot(c + step)
+            if np.linalg.norm(polished[0]) < size:
+                return c + step, float(np.linalg.norm(polished[0])), iteration + 1
             return c, size, iteration
         step, *_ = np.linalg.lstsq(jac, -residual, rcond=None)
         for _ in range(8):
