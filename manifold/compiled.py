@@ -311,6 +311,7 @@ class ChartNumerics:
     """
 
     def __init__(self, chart: Any, K: NDArray, q_out: float, fp_type: Any) -> None:
+        self._arguments = (chart, K, q_out, fp_type)
         self.fp, self.k, self.N = fp_type, chart.dim, chart.ambient_dim
         self.compiled = compiled(chart.family)
         self.M = as_fp(chart.linear_map, fp_type)
@@ -323,6 +324,13 @@ class ChartNumerics:
         for x in (self.M, self.M_inv, self.m, self.pars):  # shared by every solve on the chart (SymbolicChart.numerics)
             x.flags.writeable = False
         self._eval = Transfer(self.compiled, fp_type, self.pars)
+
+    def __getstate__(self) -> dict:
+        # the compiled family holds locks: a pickled solution (shipped to a worker) rebuilds its numerics
+        return {"arguments": self._arguments}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(*state["arguments"])  # type: ignore[misc]
 
     def point_velocity_energy(self, a: NDArray, c: NDArray) -> tuple[NDArray, NDArray, NDArray]:
         """``p = M z(a) + m`` and ``v = M J c`` (shape ``(B, N)``) and ``E`` (``(B,)``) for ``a, c`` of shape ``(k, B)``."""

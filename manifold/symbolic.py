@@ -136,6 +136,13 @@ class SymbolicChart(Chart):
             cache[key] = ChartNumerics(self, K, q_out, fp_type)
         return cache[key]
 
+    def __getstate__(self) -> dict:
+        """The chart without its cache of :meth:`numerics` (compiled, rebuilt on demand): a chart that has been
+        solved on pickles like a new one (ensembles ship charts to workers)."""
+        state = self.__dict__.copy()
+        state.pop("_numerics", None)
+        return state
+
 
 class ChartRanking:
     """Approximate parameters and quality of points in every chart of a list, in one compiled call.
