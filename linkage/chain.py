@@ -54,16 +54,24 @@ class ConfigurationError(ValueError):
     """A configuration that is not a closed chain of the chain's rods (or has the wrong shape)."""
 
 
+#: Hinge masses and nonzero rod densities are taken in this range: beyond it the kinetic metric's products of
+#: masses overflow or underflow float64 (1e-150: the chart method's first energy was NaN; 1e200: both methods').
+#: Scaling every mass by one factor changes no geodesic, so a model can always be brought into it.
+MASS_RANGE = (1e-100, 1e100)
+
+
 def _positive_vector(name: str, value: ArrayLike | float, size: int, allow_zero: bool) -> NDArray:
     v = np.asarray(value, dtype=float)
     if v.ndim == 0:
         v = np.full(size, v)
     if v.shape != (size,):
         raise ValueError(f"{name} must be a scalar or have length {size}, got shape {v.shape}")
-    ok = np.isfinite(v) & ((v >= 0) if allow_zero else (v > 0))
+    lo, hi = MASS_RANGE
+    ok = ((v >= lo) & (v <= hi)) | ((v == 0) if allow_zero else False)
     if not np.all(ok):
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{name} must be finite and {bound}, got {v[~ok]}")
+        bound = f"0 or in [{lo:g}, {hi:g}]" if allow_zero else f"in [{lo:g}, {hi:g}]"
+        raise ValueError(f"{name} must be {bound} (beyond, the kinetic metric overflows float64; scale all masses "
+                         f"together to bring them in: the geodesics do not change), got {v[~ok]}")
     return v
 
 

@@ -41,7 +41,7 @@ import heyoka as hy
 
 from charts.chain_geometry import to_real
 from manifold.constrained import ConstrainedSystem
-from manifold.validation import check_real
+from manifold.validation import check_bool, check_real
 
 from .chain import Chain
 
@@ -302,8 +302,12 @@ def start_state(
         ``(constraints, x0, v0, t_final)``: the chain's :class:`HingeConstraints`,
         the real interleaved start position and velocity, and ``t_final`` as a float.
     """
+    project_velocity = check_bool("project_velocity", project_velocity)
     chain.check_generic()
     h0 = chain.check_configuration(hinges0, tol=1e-9)
+    if h0.shape != (chain.n - 1,):
+        raise ValueError(f"hinges0 must be one configuration, shape (n - 1,) = ({chain.n - 1},), got {h0.shape} "
+                         "(for many starts at once: free_motions)")
     v0 = chain.as_hinges(velocity0, "velocity0")
     if v0.shape != (chain.n - 1,):
         raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
@@ -344,6 +348,7 @@ def start_states(
     tuple
         ``(constraints, X0, V0, t_final)`` with real interleaved ``X0``, ``V0`` of shape ``(N, 2(n-1))``.
     """
+    project_velocity = check_bool("project_velocity", project_velocity)
     H = chain.as_hinges(hinges0, "configuration")
     W = chain.as_hinges(velocities0, "velocity")
     if H.ndim != 2 or W.shape != H.shape or H.shape[0] == 0:

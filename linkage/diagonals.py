@@ -34,6 +34,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection
 
 from charts.chain_geometry import rod_vectors
+from manifold.validation import check_positive_int, real_array
 
 from .lengths import validate_lengths
 
@@ -100,7 +101,7 @@ def _all_slacks(lengths: NDArray, d: NDArray) -> NDArray:
 
 def _check_x(lengths: NDArray, L: float, x: ArrayLike) -> NDArray:
     n = lengths.size
-    xs = np.asarray(x, dtype=float)
+    xs = real_array("x", x, finite=False, expected="an array of real diagonals")  # finite: checked below, by entry
     if xs.ndim == 0 or xs.shape[-1] != n - 2:
         raise ValueError(f"x holds the n - 2 = {n - 2} free diagonals (d_2..d_{n-1}) on its last axis, got shape {xs.shape}")
     if not np.all(np.isfinite(xs)):
@@ -438,8 +439,10 @@ class DiagonalSpace:
             raise ValueError(f"measure must be 'lebesgue' or 'riemannian', got {measure!r}")
         if method not in ("auto", "rejection", "hit-and-run"):
             raise ValueError(f"method must be 'auto', 'rejection' or 'hit-and-run', got {method!r}")
-        if int(N) != N or N < 1:
-            raise ValueError(f"N must be a positive integer, got {N!r}")
+        N = check_positive_int("N", N)
+        max_draws, pool = check_positive_int("max_draws", max_draws), check_positive_int("pool", pool)
+        if steps is not None:
+            steps = check_positive_int("steps", steps)
         M = int(N) * (pool if measure == "riemannian" else 1)
         acceptance = None
         if method == "auto":

@@ -11,6 +11,7 @@ core or a Dask cluster; :mod:`linkage.ensemble`) and :func:`lyapunov_exponent`
 
 from __future__ import annotations
 
+import inspect
 from functools import cached_property
 from typing import Any
 
@@ -148,6 +149,23 @@ def _default_velocity(chain: Chain, kwargs: dict) -> ConstrainedVelocity | None:
     return ConstrainedVelocity(ChainSystem(chain))
 
 
+#: Options often written for the one each method calls ``tol`` (scipy's names).
+_TOLERANCE_ALIASES = ("rtol", "atol", "tolerance")
+
+
+def _check_options(method: str, options: dict[str, Any]) -> None:
+    """``TypeError`` naming an option that the method's solver does not take, with the options it does take."""
+    solver = solve_constrained if method == "hinges" else solve_chart_exp_ode
+    parameters = inspect.signature(solver).parameters
+    taken = sorted(name for name, p in parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY
+                   and name not in ("metric", "progress", "carry", "project_velocity", "tangent_tol"))
+    for name in options:
+        if name not in taken:
+            hint = "; the tolerance is tol=" if name in _TOLERANCE_ALIASES else ""
+            raise TypeError(f"free_motion(method={method!r}) does not take {name}={options[name]!r}{hint} "
+                            f"(its options: {', '.join(taken)})")
+
+
 def free_motion(
     chain: Chain,
     hinges0: ArrayLike,
@@ -219,6 +237,7 @@ def free_motion(
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    _check_options(method, kwargs)
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
     # velocity0 is tangent to tangent_tol (checked above): the solvers' own projection only removes rounding
     if method == "hinges":

@@ -32,11 +32,15 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from manifold.validation import check_real
+
 from .lengths import sides, validate_lengths
 
 MAX_RODS = 20
 #: Signed sums and ``max s_j - P/2`` within ``RTOL * P`` of zero count as zero.
 RTOL = 1e-12
+#: Largest ``rtol`` taken: a tolerance of a tenth of the perimeter would call distinct topologies one.
+MAX_RTOL = 1e-3
 
 
 @dataclass(frozen=True)
@@ -177,7 +181,7 @@ def topology(lengths: ArrayLike, L: float, rtol: float = RTOL) -> Topology:
     L
         Distance of the pins, finite and ``> 0``.
     rtol
-        Signed sums and ``max s_j - P/2`` within ``rtol * P`` of zero count as zero.
+        Signed sums and ``max s_j - P/2`` within ``rtol * P`` of zero count as zero; in ``[0, MAX_RTOL]``.
 
     Returns
     -------
@@ -186,6 +190,9 @@ def topology(lengths: ArrayLike, L: float, rtol: float = RTOL) -> Topology:
         readable :meth:`Topology.summary`.
     """
     ls, L = validate_lengths(lengths, L)
+    rtol = check_real("rtol", rtol, at_most=MAX_RTOL)
+    if rtol < 0:
+        raise ValueError(f"rtol must be a real number in [0, {MAX_RTOL:g}], got {rtol!r}")
     if ls.size > MAX_RODS:
         raise ValueError(f"topology enumerates 2^n subsets: n = len(lengths) must be <= {MAX_RODS}, got {ls.size}")
     s = sides(ls, L)

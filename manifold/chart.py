@@ -13,6 +13,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .validation import real_array
+
 
 class ChartDomainError(ValueError):
     """Raised when parameters lie outside a chart or a point is not in its image."""
@@ -77,7 +79,11 @@ class Chart(ABC):
         """Chart quality in ``[0, 1]``: 0 on the singular set, 1 far from it."""
 
     def tangent_vector(self, a: ArrayLike, c: ArrayLike) -> NDArray:
-        """Embedded tangent vector ``v = J(a) c`` of coefficients ``c``."""
+        """Embedded tangent vector ``v = J(a) c`` of coefficients ``c`` (shape ``(..., dim)``)."""
+        c = real_array("c", c)
+        if c.ndim == 0 or c.shape[-1] != self.dim:
+            raise ValueError(f"c must hold the {self.dim} coefficients of a tangent vector on its last axis, "
+                             f"got shape {c.shape}")
         return _apply(self.jacobian(a), c)
 
     def coefficients(self, a: ArrayLike, v: ArrayLike) -> NDArray:
@@ -87,6 +93,9 @@ class Chart(ABC):
         normal equations, which would square the condition number of ``J``).
         Use :meth:`tangent_residual` to check tangency.
         """
+        v = real_array("v", v)
+        if v.ndim == 0 or v.shape[-1] != self.ambient_dim:
+            raise ValueError(f"v must be an embedded vector of R^{self.ambient_dim} on its last axis, got shape {v.shape}")
         return _apply(np.linalg.pinv(self.jacobian(a)), v)
 
     def tangent_residual(self, a: ArrayLike, v: ArrayLike) -> NDArray:

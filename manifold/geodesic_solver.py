@@ -137,6 +137,8 @@ def solve_chart_exp_ode(
     GeodesicSolution
     """
     wall0 = time.perf_counter()
+    if not isinstance(metric, InducedMetric):
+        raise TypeError(f"metric must be a manifold.InducedMetric (an atlas with its metric), got {metric!r}")
     fp_type = resolve_fp_type(fp_type)
     report = as_callback(progress)
     switching, project_velocity = check_bool("switching", switching), check_bool("project_velocity", project_velocity)

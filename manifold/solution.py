@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from .compiled import ChartNumerics
 from .metric import InducedMetric
 from .precision import as_fp
+from .validation import real_array
 
 
 #: The energy check: a solve fails where ``|E - E0| > (ENERGY_SAFETY sqrt(steps + 1) + ENERGY_FLOOR) tol E0``, ``tol`` the
@@ -350,8 +351,12 @@ class GeodesicSolution:
         return np.minimum(np.searchsorted(ends, sign * ts, side="right"), len(self.segments) - 1)
 
     def _states(self, flat: NDArray) -> tuple[NDArray, NDArray]:
-        """Segment index and dense state of each time in the 1-d ``flat``."""
+        """Segment index and dense state of each time in the 1-d ``flat`` (none for no times)."""
         seg = self._locate(flat)
+        if not flat.size:  # the state's width, from one evaluation at the start
+            first = self.segments[0]
+            assert first.dense is not None  # _locate refuses a solution without dense output
+            return seg, first.dense(np.array([float(first.t_start)]))[:0]
         rows = [(np.nonzero(seg == s)[0], self.segments[s].dense(flat[seg == s])) for s in np.unique(seg)]
         width = max(vals.shape[1] for _, vals in rows)
         states = np.empty((flat.size, width), dtype=rows[0][1].dtype)
@@ -363,7 +368,7 @@ class GeodesicSolution:
         """The integrator's state at time(s) ``t``, shape ``t.shape + (width,)``, in ``fp_type``, as integrated
         (chart segments: ``(a, c)`` padded to the widest segment; ambient ones: ``(x, v)`` and any quantities
         carried along, :mod:`manifold.carried`)."""
-        ts = np.asarray(t, dtype=float)
+        ts = real_array("t", t, finite=False, expected="a real time or an array of times")  # a NaN is refused by _locate, naming the span
         _, states = self._states(ts.ravel())
         return states.reshape(*ts.shape, states.shape[1])
 
@@ -377,7 +382,7 @@ class GeodesicSolution:
         """
         if self.metric is None:
             raise ValueError("this solution has no atlas (solved without metric=...): no chart parameters")
-        ts = np.asarray(t, dtype=float)
+        ts = real_array("t", t, finite=False, expected="a real time or an array of times")
         flat = ts.ravel()
         seg, states = self._states(flat)
         k, N = self.metric.atlas.dim, self.metric.atlas.ambient_dim
@@ -398,7 +403,7 @@ class GeodesicSolution:
 
     def __call__(self, t: ArrayLike) -> tuple[NDArray, NDArray]:
         """Point ``p(t)`` and embedded velocity ``v(t)`` (shape ``t.shape + (N,)``) in the working precision."""
-        ts = np.asarray(t, dtype=float)
+        ts = real_array("t", t, finite=False, expected="a real time or an array of times")
         flat = ts.ravel()
         seg, states = self._states(flat)
         # without an atlas every segment is in ambient coordinates, the state (p, v, anything carried along)

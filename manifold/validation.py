@@ -107,17 +107,19 @@ def check_positive_int(name: str, value: object) -> int:
     return int(value)
 
 
-def real_array(name: str, value: object, *, finite: bool = True) -> np.ndarray:
+def real_array(name: str, value: object, *, finite: bool = True,
+               expected: str = "a real array (interleaved real coordinates)") -> np.ndarray:
     """``value`` as a float64 array; ``TypeError`` for complex, string, boolean or object input.
 
     numpy would drop an imaginary part with only a warning, and read a string
-    array as text: both are refused here, naming ``name``.  With ``finite``,
-    ``nan`` and ``inf`` raise ``ValueError``.
+    array as text (``'1'`` would be taken as the time 1): both are refused here,
+    naming ``name`` and what was ``expected``.  With ``finite``, ``nan`` and
+    ``inf`` raise ``ValueError``.
     """
     arr = np.asarray(value)
     if arr.dtype.kind not in "iuf":
         what = "complex" if arr.dtype.kind == "c" else arr.dtype.name
-        raise TypeError(f"{name} must be a real array (interleaved real coordinates), got {what} values")
+        raise TypeError(f"{name} must be {expected}, got {what} values")
     arr = arr.astype(float)
     if finite and not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite, got {value!r}")

@@ -135,3 +135,47 @@ def test_errors_name_the_public_arguments(start):
         free_motion(chain, h0, v0 * 1e200, 1.0)
     with pytest.raises(ValueError, match="v0 gives a non-finite kinetic energy"):
         solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0) * 1e200, 1.0)
+
+
+# -- options and inputs an adversarial fuzz found unchecked ------------------------------------------------------
+def test_options_found_unchecked_are_refused_by_name(start):
+    from linkage.topology import topology
+
+    chain, h0, v0 = start
+    for rtol in (np.nan, -1.0, 10.0):
+        with pytest.raises(ValueError, match="rtol must be"):
+            topology((1, 1, 1, 1), 2.6, rtol=rtol)
+    space, rng = chain.diagonal_space(), np.random.default_rng(0)
+    with pytest.raises(ValueError, match="steps must be an integer >= 1, got 0"):
+        space.sample(3, rng, method="hit-and-run", steps=0)
+    with pytest.raises(ValueError, match="max_draws must be an integer >= 1, got 0"):
+        space.sample(3, rng, max_draws=0)
+    with pytest.raises(TypeError, match="project_velocity must be True or False"):
+        free_motion(chain, h0, v0, 1.0, project_velocity="yes")
+    x, flips = chain.diagonals(h0)
+    with pytest.raises(TypeError, match="x must be an array of real diagonals, got complex"):
+        chain.from_diagonals(x + 1j, flips)
+    with pytest.raises(ValueError, match=r"hinge_masses must be in \[1e-100, 1e\+100\]"):
+        Chain(4, 2.6, hinge_masses=1e-300)
+    with pytest.raises(ValueError, match=r"rod_densities must be 0 or in \[1e-100, 1e\+100\]"):
+        Chain(4, 2.6, rod_densities=1e200)
+    with pytest.raises(TypeError, match="metric must be a manifold.InducedMetric"):
+        solve_chart_exp_ode(None, np.zeros(6), np.zeros(6), 1.0)
+    with pytest.raises(ValueError, match=r"hinges0 must be one configuration.*free_motions"):
+        free_motion(chain, np.stack([h0, h0]), np.stack([v0, v0]), 1.0, method="hinges")
+    for method in ("hinges", "charts"):
+        with pytest.raises(TypeError, match=f"free_motion.method='{method}'. does not take rtol=1e-10; the tolerance is tol="):
+            free_motion(chain, h0, v0, 1.0, method=method, rtol=1e-10)
+    chart = chain.atlas().charts[0]
+    with pytest.raises(ValueError, match="c must hold the 2 coefficients"):
+        chart.tangent_vector(np.array([0.1, 0.2]), np.array([1.0, 2.0, 3.0]))
+
+
+def test_a_motion_takes_real_times_only_and_no_times_at_all(start):
+    chain, h0, v0 = start
+    motion = free_motion(chain, h0, v0, 1.0, method="hinges")
+    hinges, velocities = motion(np.array([]))
+    assert hinges.shape == velocities.shape == (0, 3)
+    for bad in ("1", True, 1j):
+        with pytest.raises(TypeError, match="t must be a real time or an array of times"):
+            motion(bad)
