@@ -55,10 +55,13 @@ class ChainMotion:
         self.chain, self.solution = chain, solution
 
     def __repr__(self) -> str:
-        return f"ChainMotion({self.chain!r}, {self.solution!r})"
+        rounded = "" if self.solution.fp_type is float else "; motion(t) rounds to complex128, motion.solution(t) keeps it"
+        return f"ChainMotion({self.chain!r}, {self.solution!r}{rounded})"
 
     def __call__(self, t: ArrayLike) -> tuple[NDArray, NDArray]:
-        """Complex hinges and hinge velocities at time(s) ``t`` (rounded to complex128)."""
+        """Complex hinges and hinge velocities at time(s) ``t``, rounded to complex128 (numpy has no complex type of
+        long double's or quad's width); ``motion.solution(t)`` gives the interleaved real points and velocities in
+        the working precision."""
         p, v = self.solution(t)
         return self.chain.from_point(p.astype(float)), self.chain.from_point(v.astype(float))
 

@@ -56,3 +56,17 @@ def test_demo_command_line(args, code, text):
     run = subprocess.run([sys.executable, "-m", "linkage", *args], cwd=ROOT, capture_output=True, text=True)
     assert run.returncode == code
     assert text in run.stdout + run.stderr and "Traceback" not in run.stderr
+
+
+@pytest.mark.parametrize("precision, floor", [("float64", 1e-17), ("longdouble", 1e-21)])
+def test_demo_compares_in_the_working_precision_and_prints_no_nan(precision, floor, tmp_path):
+    """A short run: the distance to the hinge method is computed in the working precision (rounded to complex128
+    first, a long-double run reported exactly 0), its horizon is the run's, and no exp(nan t) is printed."""
+    from linkage.demo import run as demo_run
+
+    stats = demo_run(4, 2.6, 8.0, precision, str(tmp_path / "demo.png"), samples=200)
+    assert floor < stats["hinge_distance_10"] < 1e-12
+    assert stats["early_horizon"] == 8.0
+    out = subprocess.run([sys.executable, "-m", "linkage", "--T", "8", "--out", str(tmp_path / "d.png")], cwd=ROOT,
+                         capture_output=True, text=True).stdout
+    assert "nan" not in out and "for t <= 8 " in out
