@@ -1,10 +1,12 @@
 """Riemannian geometry of a chain's configuration space: exp, parallel transport, Jacobi fields, log and distance.
 
-All of them run in hinge coordinates, on the rod constraints of
+By default all of them run in hinge coordinates, on the rod constraints of
 :class:`linkage.constraints.ChainSystem` (no chart, so nothing is singular:
 poles and folds of the suspension charts are ordinary points here), with the
 quantities carried along the geodesic as :mod:`manifold.carried` terms in the
-same heyoka Taylor integrator as the geodesic.  Hinges, velocities and
+same heyoka Taylor integrator as the geodesic.  ``parallel_transport`` and
+``jacobi_field`` also run in the suspension atlas (``method="charts"``): the
+geodesic chart by chart, the same terms carried beside it in hinge space.  Hinges, velocities and
 tangent vectors are complex, shape ``(n-1,)`` (a vector of hinge velocities);
 several vectors at once have shape ``(k, n-1)``.  The kinetic metric is
 ``<u, w> = Re(u^H A w)`` with the chain's mass matrix ``A``.
@@ -23,14 +25,22 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from manifold import GeodesicIntegrationError, SolveStatus, solve_chart_exp_ode
+from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.carried import CarriedSolution, CarriedTerm, solve_carried
-from manifold.constrained import solve_constrained
+from manifold.constrained import ConstrainedGeometry, solve_constrained
 from manifold.jacobi import JacobiField
+from manifold.sundman import SundmanStepper
 from manifold.transport import ParallelTransport
 from manifold.validation import check_positive_int, check_real, check_time_grid
 
 from .chain import Chain
 from .constraints import ChainSystem, HingeConstraints, start_state
+from .time_factor import ChainTimeFactor
+
+#: Where a geodesic with quantities carried along it is integrated: in hinge coordinates (any generic lengths) or
+#: in the suspension atlas (where the chain has one), as :func:`linkage.motion.free_motion`'s methods.
+METHODS = ("hinges", "charts")
 
 __all__ = ["CarriedMotion", "JacobiFieldMotion", "LogResult", "TransportedVectors", "distance", "exp",
            "jacobi_field", "log", "parallel_transport", "tangent_basis"]
@@ -121,14 +131,40 @@ def _times(t_eval: ArrayLike | None, carried: CarriedSolution) -> NDArray:
 
 
 def _solve(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, term_of: Callable[[NDArray], CarriedTerm],
-           t_eval: ArrayLike | None,
-           tangent_tol: float, options: dict[str, Any]) -> tuple[CarriedSolution, NDArray]:
+           t_eval: ArrayLike | None, tangent_tol: float, method: str,
+           options: dict[str, Any]) -> tuple[CarriedSolution, NDArray]:
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     _, x0, v0, T = start_state(chain, hinges0, velocity0, check_real("T", T, nonzero=True), tangent_tol, False)
     if t_eval is not None:
         t_eval = check_time_grid(t_eval, T)
     term: CarriedTerm = term_of(x0)
-    carried = solve_carried(ChainSystem(chain), x0, v0, T, [term], **options)
+    if method == "hinges":
+        carried = solve_carried(ChainSystem(chain), x0, v0, T, [term], **options)
+    else:
+        carried = _solve_in_charts(chain, x0, v0, T, term, options)
     return carried, _times(t_eval, carried)
+
+
+def _solve_in_charts(chain: Chain, x0: NDArray, v0: NDArray, T: float, term: CarriedTerm,
+                     options: dict[str, Any]) -> CarriedSolution:
+    """The geodesic in the atlas (Sundman's time, the state ``(a, J c)``) with ``term``'s ambient slots carried along,
+    through every switch unchanged; the term's invariants checked over every step afterwards."""
+    for name in ("stepper", "dense", "t_eval", "form"):
+        if name in options:
+            raise TypeError(f"method='charts' does not take {name}= here (the stepper carries the term in the state "
+                            "(a, J c), with dense output)")
+    system = ChainSystem(chain)
+    stepper = SundmanStepper(ChainTimeFactor(chain), tol=options.pop("tol", None),
+                             velocity=ConstrainedVelocity(system, carry=(term,)))
+    solution = solve_chart_exp_ode(chain.metric(), x0, v0, T, stepper=stepper, project_velocity=True, **options)
+    carried = CarriedSolution(solution, (term,), ConstrainedGeometry(system, solution.fp_type))
+    violation = carried.violation(stepper.relative_tolerance(solution.fp_type))
+    if violation is not None:
+        solution.status, solution.message = SolveStatus.CARRIED_CHECK_FAILED, violation
+        if options.get("throw", True):
+            raise GeodesicIntegrationError(violation, solution)
+    return carried
 
 
 def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, *, tangent_tol: float = 1e-9,
@@ -162,7 +198,7 @@ def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, 
 
 
 def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, vectors0: ArrayLike, T: float,
-                       t_eval: ArrayLike | None = None, *, tangent_tol: float = 1e-9,
+                       t_eval: ArrayLike | None = None, *, method: str = "hinges", tangent_tol: float = 1e-9,
                        **options: Any) -> TransportedVectors:
     """Transport tangent vectors parallel along the geodesic from ``(hinges0, velocity0)`` for the time ``T``.
 
@@ -184,10 +220,18 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
         The time to transport for (nonzero; negative runs backward).
     t_eval
         The times of :attr:`~CarriedMotion.times` (1-d, within ``[0, T]``, in order); default every step.
+    method
+        ``"hinges"`` (default): in hinge coordinates with the rod constraints
+        (:func:`manifold.carried.solve_carried`; any generic lengths).  ``"charts"``: the geodesic in the
+        suspension atlas, in Sundman's time with the state ``(a, J c)``, the vectors carried in hinge space
+        beside it (:class:`manifold.ambient_velocity.ConstrainedVelocity` with ``carry=``), through every
+        chart switch unchanged (they are ambient: no chart coefficients to map), and their invariants checked
+        over every step afterwards; where the chain has an atlas.
     tangent_tol
         The tangency tolerance of ``velocity0`` and ``vectors0``.
     **options
-        Passed to :func:`manifold.carried.solve_carried` (``fp_type``, ``tol``, ``rate``, ``throw``, ``progress``).
+        Passed to :func:`manifold.carried.solve_carried` (``fp_type``, ``tol``, ``rate``, ``throw``, ``progress``),
+        or for ``"charts"`` to :func:`manifold.solve_chart_exp_ode` (``fp_type``, ``tol``, ``q_out``, ``throw``, ...).
 
     Returns
     -------
@@ -202,12 +246,12 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
         single.append(one)
         return ParallelTransport(rows)
 
-    carried, times = _solve(chain, hinges0, velocity0, T, term, t_eval, tangent_tol, options)
+    carried, times = _solve(chain, hinges0, velocity0, T, term, t_eval, tangent_tol, method, options)
     return TransportedVectors(chain, carried, times, single[0])
 
 
 def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0: ArrayLike, derivative0: ArrayLike,
-                 T: float, t_eval: ArrayLike | None = None, *, tangent_tol: float = 1e-9,
+                 T: float, t_eval: ArrayLike | None = None, *, method: str = "hinges", tangent_tol: float = 1e-9,
                  **options: Any) -> JacobiFieldMotion:
     """The Jacobi field along the geodesic from ``(hinges0, velocity0)`` with ``J(0) = field0``, ``D_t J(0) = derivative0``.
 
@@ -217,7 +261,7 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
 
     Parameters
     ----------
-    chain, hinges0, velocity0, T, t_eval, tangent_tol, **options
+    chain, hinges0, velocity0, T, t_eval, method, tangent_tol, **options
         As in :func:`parallel_transport`.
     field0, derivative0
         Complex tangent vectors at ``hinges0``, one shape: ``(n-1,)`` or ``(k, n-1)`` for ``k`` fields at once.
@@ -239,7 +283,7 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
         single.append(one)
         return JacobiField(J, U)
 
-    carried, times = _solve(chain, hinges0, velocity0, T, term, t_eval, tangent_tol, options)
+    carried, times = _solve(chain, hinges0, velocity0, T, term, t_eval, tangent_tol, method, options)
     return JacobiFieldMotion(chain, carried, times, single[0])
 
 

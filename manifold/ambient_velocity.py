@@ -36,6 +36,14 @@ Steppers take it as ``velocity=`` (:class:`~manifold.steppers.TaylorStepper`,
 ``(a, c)`` as every stepper's do: :meth:`ConstrainedVelocity.wrap` converts
 on the way in (``V = J c``) and on the way out, dense output included, so the
 engine, switches, energy checks and solutions are unchanged.
+
+The same state carries :mod:`manifold.carried` terms along the chart geodesic
+(``carry=``): their slots are ambient (a transported vector ``W``, a Jacobi
+field's ``(J, U)``), their equations the constraint system's with ``x = M z(a) + m``
+and ``v = M J a'``, so a chart switch leaves them as they are: the
+transition's differential acts on chart coefficients, and these have none.
+They follow ``(a, V)`` in the state, and the solver's loop passes them through
+every segment, wrap and switch.
 """
 
 from __future__ import annotations
@@ -47,7 +55,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .compiled import CompiledFamily, Transfer
-from .constrained import ConstrainedPieces, ConstrainedSystem, compiled_constrained, damping_rate, speed_scale
+from .carried import CarriedTerm
+from .constrained import (ConstrainedGeometry, ConstrainedPieces, ConstrainedSystem, compiled_constrained,
+                          damping_rate, speed_scale)
 from .precision import as_fp
 from .solution import DenseOutput
 from .steppers import Advance, AdvanceFunction
@@ -74,26 +84,35 @@ class ConstrainedVelocity:
         motion's speed scale over the system's length (as the hinge method's
         Baumgarte rate: :func:`manifold.constrained.damping_rate`); 0 leaves the
         drift alone.  The default is chosen by measurement (``docs/methods.md``).
+    carry
+        :class:`~manifold.carried.CarriedTerm` s integrated along (their slots after ``V``; the terms' own
+        damping of drift off the tangent space runs at ``gamma``).  Their start values are taken on the first
+        segment; read them back with :class:`~manifold.carried.CarriedSolution`.
     """
 
-    def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE) -> None:
+    def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE,
+                 carry: tuple[CarriedTerm, ...] = ()) -> None:
         if not isinstance(system, ConstrainedSystem):
             raise TypeError(f"system must be a manifold.constrained.ConstrainedSystem, got {type(system).__name__}")
         self.system = system
         self.rate = check_real("rate", rate)
         if self.rate < 0:
             raise ValueError(f"rate must be a finite real number >= 0, got {rate!r}")
+        self.carry = tuple(carry)
+        if not all(isinstance(term, CarriedTerm) for term in self.carry):
+            raise TypeError(f"carry must hold manifold.carried.CarriedTerm objects, got {self.carry!r}")
         self._compiled = compiled_constrained(system)
         self._values: dict[Any, NDArray] = {}  # fp_type -> parameter values
         self._speed_scale = speed_scale(system)  # once: each segment's damping rate needs it
 
     def __repr__(self) -> str:
-        return f"ConstrainedVelocity({self.system!r}, rate={self.rate!r})"
+        carry = f", carry={self.carry!r}" if self.carry else ""
+        return f"ConstrainedVelocity({self.system!r}, rate={self.rate!r}{carry})"
 
     @property
     def key(self) -> Hashable:
-        """Identity of the compiled equations: the system's key and its metric's sparsity."""
-        return ("constrained-velocity", self.system.key, self._compiled.layout)
+        """Identity of the compiled equations: the system's key, its metric's sparsity and the carried terms' keys."""
+        return ("constrained-velocity", self.system.key, self._compiled.layout, tuple(t.key for t in self.carry))
 
     @property
     def n_params(self) -> int:
@@ -111,11 +130,12 @@ class ConstrainedVelocity:
         return self._values[fp_type]
 
     def __getstate__(self) -> dict:
-        """Pickle the system and the rate only (for ensembles on other processes): the compiled store holds a lock."""
-        return {"system": self.system, "rate": self.rate}
+        """Pickle the system, the rate and the terms only (for ensembles on other processes): the compiled store
+        holds a lock."""
+        return {"system": self.system, "rate": self.rate, "carry": self.carry}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["system"], state["rate"])  # type: ignore[misc]
+        self.__init__(state["system"], state["rate"], state.get("carry", ()))  # type: ignore[misc]
 
     def check(self, family: CompiledFamily, form: str) -> None:
         """Refuse a system of another ambient dimension than the family's points, and a ``form`` other than the
@@ -135,11 +155,20 @@ class ConstrainedVelocity:
         and appends to the chart's parameters the damping rate ``gamma`` at the segment's energy.
         """
         k, N = family.family.dim, family.family.point_dim
+        geometry = ConstrainedGeometry(self.system, fp_type) if self.carry else None
 
         def run(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
             transfer = Transfer(family, fp_type, pars)
-            start = transfer(y[:k, None], y[k:, None], np.zeros((N, 1)))  # z, J c, ..., E
-            ambient = np.concatenate([y[:k], start[N : 2 * N, 0]])
+            start = transfer(y[:k, None], y[k : 2 * k, None], np.zeros((N, 1)))  # z, J c, ..., E
+            carried = y[2 * k :]
+            if geometry is not None and not carried.size:  # the first segment: the terms' start values
+                # in the ambient frame p = M z + m, v = M J c (the state's V is in the chart's frame, before M)
+                lay = family.layout
+                M = pars[lay.map_index : lay.map_index + N * N].reshape(N, N)
+                m = pars[lay.map_index + N * N : lay.map_index + N * N + N]
+                p, v = M @ start[:N, 0] + m, M @ start[N : 2 * N, 0]
+                carried = np.concatenate([term.start(geometry, p, v) for term in self.carry])
+            ambient = np.concatenate([y[:k], start[N : 2 * N, 0], carried])
             gamma = damping_rate(self._speed_scale, self.rate, float(start[-1, 0]), float(t_final - t))
             adv = advance(t, ambient, t_final, np.concatenate([pars, as_fp([gamma], fp_type)]), dense)
             out = None if adv.dense is None else _ChartDense(adv.dense, transfer)
@@ -160,7 +189,8 @@ def _chart_states(states: NDArray, transfer: Transfer) -> NDArray:
     """
     k, N = transfer.k, transfer.N
     a = states[:, :k].T
-    return np.concatenate([a, transfer.coefficients(a, states[:, k : k + N].T)]).T
+    # anything carried after (a, V) is ambient: it passes as it is
+    return np.concatenate([a, transfer.coefficients(a, states[:, k : k + N].T), states[:, k + N :].T]).T
 
 
 class _ChartDense:

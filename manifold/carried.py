@@ -141,22 +141,39 @@ class CarriedSolution:
     def __repr__(self) -> str:
         return f"CarriedSolution({', '.join(t.name for t in self.terms)}; {self.solution!r})"
 
-    def slots(self) -> list[slice]:
-        """Where each term's slots lie in the state ``(x, v, ...)`` (:func:`slot_ranges`)."""
-        return slot_ranges(self.terms, self.geometry.N)
-
     def __call__(self, t: ArrayLike) -> tuple[NDArray, NDArray, list[dict[str, NDArray]]]:
         """Point, velocity (shape ``t.shape + (N,)``) and each term's values (:meth:`CarriedTerm.read`, leading
         shape ``t.shape``) at time(s) ``t``, in the working precision."""
         ts = np.asarray(t, dtype=float)
-        states = self.solution.states(ts.ravel())
-        N = self.geometry.N
-        x, v = states[:, :N], states[:, N : 2 * N]
-        values = []
-        for term, sl in zip(self.terms, self.slots()):
-            read = term.read(self.geometry, x, v, states[:, sl])
+        x, v = self.solution(ts.ravel())
+        slots = self.slots(ts.ravel())
+        N, values, start = self.geometry.N, [], 0
+        for term in self.terms:
+            read = term.read(self.geometry, x, v, slots[:, start : start + term.size(N)])
+            start += term.size(N)
             values.append({k: a.reshape(*ts.shape, *a.shape[1:]) for k, a in read.items()})
         return x.reshape(*ts.shape, N), v.reshape(*ts.shape, N), values
+
+    def slots(self, t: NDArray) -> NDArray:
+        """The carried slots at the 1-d times ``t``, rows ``(len(t), sum of the terms' sizes)``: the last columns
+        of the state, after ``(x, v)`` in hinge coordinates and after ``(a, c)`` in a chart."""
+        states = self.solution.states(t)
+        return states[:, states.shape[1] - sum(term.size(self.geometry.N) for term in self.terms) :]
+
+    def violation(self, tol: float) -> str | None:
+        """The first carried term whose invariants moved beyond :data:`CARRIED_SAFETY` times the energy bound at
+        relative tolerance ``tol`` over the recorded step times (a sentence), else ``None``: the check that
+        :func:`~manifold.constrained.solve_constrained` makes as it goes, for a solve that does not (the chart
+        path)."""
+        times = np.array([float(s) for s in self.solution.energy_times])
+        x, v = self.solution(times)
+        rows = np.concatenate([x, v, self.slots(times)], axis=1)
+        for term, sl in zip(self.terms, slot_ranges(self.terms, self.geometry.N)):
+            message = carried_violation(term, self.geometry, rows[1:], rows[0], sl, times[1:],
+                                        self.solution.n_steps, tol)
+            if message is not None:
+                return message
+        return None
 
 
 def solve_carried(system: ConstrainedSystem, x0: ArrayLike, v0: ArrayLike, t_final: float,

@@ -178,7 +178,8 @@ class CompiledFamily(ArtefactStore):
                 equations = P.equations(form)
             else:
                 offset = self.layout.constraint_index(0 if factor is None else factor.n_params)
-                equations = P.ambient_velocity_equations(velocity.pieces(fp_type), velocity.n_params, offset)
+                equations = P.ambient_velocity_equations(velocity.pieces(fp_type), velocity.n_params, offset,
+                                                         velocity.carry)
             if factor is not None:
                 equations = P.sundman_equations(factor, equations)
                 events = events + [hy.t_event(equations[-1][0] - 1.0, **event_fp_kwargs(fp_type))]

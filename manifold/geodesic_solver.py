@@ -168,19 +168,20 @@ def solve_chart_exp_ode(
                                                                    switching=switching) as advance:
         compile_seconds = time.perf_counter() - t0
         t = fp_type(0.0)
+        carried = np.zeros(0, dtype=a.dtype)  # what a stepper carries after (a, c): ambient, the same in every chart
         if switching and float(atlas.charts[i].quality(a.astype(float))) < q_event:
             i, a, c = _switch(sol, i, a, c, t, q_event)  # its event would never fire: it starts past it
         while True:
-            adv = advance(t, np.concatenate([a, c]), fp_type(t_end), num[i].pars, dense or grid is not None)
+            adv = advance(t, np.concatenate([a, c, carried]), fp_type(t_end), num[i].pars, dense or grid is not None)
             sol.segments.append(Segment(i, t, adv.t, adv.n_steps, adv.dense if dense else None))
-            _, _, E = num[i].point_velocity_energy(adv.step_states[:, :k].T, adv.step_states[:, k:].T)
+            _, _, E = num[i].point_velocity_energy(adv.step_states[:, :k].T, adv.step_states[:, k : 2 * k].T)
             recorded = len(sol.energies)
             sol.energy_times.extend(adv.step_times)
             sol.energies.extend(np.atleast_1d(E))
             violation = sol.energy_violation(recorded, energy_tol, f"chart {atlas.ids[i]}")
             if grid is not None:
                 n_grid = sol.record_grid(grid, n_grid, adv, sign, num[i].point_velocity_states)
-            a, c, t = adv.y[:k], adv.y[k:], adv.t
+            a, c, carried, t = adv.y[:k], adv.y[k : 2 * k], adv.y[2 * k :], adv.t
             if reports is not None:
                 reports.segment(t, f"chart {atlas.ids[i]}")
             if violation is not None:

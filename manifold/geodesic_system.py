@@ -215,7 +215,8 @@ class SymbolicPieces:
         M = self._par_matrix(lay.map_index)
         return [hy.sum([M[r][s] * self.z[s] for s in range(N)] + [hy.par[lay.map_index + N * N + r]]) for r in range(N)]
 
-    def ambient_velocity_equations(self, constrained: Any, n_constraint_pars: int, offset: int) -> list[tuple]:
+    def ambient_velocity_equations(self, constrained: Any, n_constraint_pars: int, offset: int,
+                                   carry: tuple = ()) -> list[tuple]:
         r"""The geodesic with the chart frame's ambient velocity ``V = J c`` as state: ``(a, V)`` instead of ``(a, c)``.
 
         .. math::
@@ -232,6 +233,10 @@ class SymbolicPieces:
         rounding's normal drift feed back.  ``V - J a'`` is that normal drift (0 on the exact solution), and the
         last term damps it: left alone it turns into tangent velocity as the tangent space turns, and the energy
         error grew like ``t^0.6..0.9`` instead of ``sqrt(t)``.
+
+        ``carry`` (:class:`~manifold.carried.CarriedTerm` s) appends each term's slots (``carried{j}_{i}``, in the
+        ambient frame) with its equations on ``constrained``, moved the same way (its damping rate, the
+        constrained system's ``par[0]``, becomes ``gamma``).
         """
         lay, N = self.layout, self.N
         V = [hy.expression(f"V{r}") for r in range(N)]
@@ -244,8 +249,14 @@ class SymbolicPieces:
         moves.update({vi: wi for vi, wi in zip(constrained.v, v)})
         f = hy.subs([rhs for _, rhs in constrained.equations(False)[N:]], moves)
         gamma = hy.par[offset + n_constraint_pars]
-        return (list(zip(self.a, c))
-                + [(V[r], hy.sum([M_inv[r][s] * f[s] for s in range(N)]) - gamma * (V[r] - JC[r])) for r in range(N)])
+        equations = (list(zip(self.a, c))
+                     + [(V[r], hy.sum([M_inv[r][s] * f[s] for s in range(N)]) - gamma * (V[r] - JC[r]))
+                        for r in range(N)])
+        moves[hy.par[0]] = gamma  # a carried term damps its own drift at the rate its stabilised form reads at par[0]
+        for j, term in enumerate(carry):
+            y = [hy.expression(f"carried{j}_{i}") for i in range(term.size(N))]
+            equations += list(zip(y, hy.subs(term.equations(constrained, y, True), moves)))
+        return equations
 
     def sundman_equations(self, factor: Any, equations: list[tuple]) -> list[tuple]:
         """Geodesic ``equations`` in Sundman's time: ``dy/dtau = s(p) dy/dt`` and ``du/dtau = s(p) / (t_final - origin)``.
