@@ -54,9 +54,10 @@ class ConfigurationError(ValueError):
     """A configuration that is not a closed chain of the chain's rods (or has the wrong shape)."""
 
 
-#: Hinge masses and nonzero rod densities are taken in this range: beyond it the kinetic metric's products of
-#: masses overflow or underflow float64 (1e-150: the chart method's first energy was NaN; 1e200: both methods').
-#: Scaling every mass by one factor changes no geodesic, so a model can always be brought into it.
+#: Hinge masses are taken in this range, rod densities in ``[0, 1e100]``: beyond it the kinetic metric's products of
+#: masses overflow or underflow float64 (hinge masses 1e-150: the chart method's first energy was NaN; 1e200: both
+#: methods'); a tiny density beside the hinge masses is harmless.  Scaling every mass by one factor changes no
+#: geodesic, so a model can always be brought into it.
 MASS_RANGE = (1e-100, 1e100)
 
 
@@ -67,9 +68,10 @@ def _positive_vector(name: str, value: ArrayLike | float, size: int, allow_zero:
     if v.shape != (size,):
         raise ValueError(f"{name} must be a scalar or have length {size}, got shape {v.shape}")
     lo, hi = MASS_RANGE
-    ok = ((v >= lo) & (v <= hi)) | ((v == 0) if allow_zero else False)
+    lo = 0.0 if allow_zero else lo
+    ok = (v >= lo) & (v <= hi)
     if not np.all(ok):
-        bound = f"0 or in [{lo:g}, {hi:g}]" if allow_zero else f"in [{lo:g}, {hi:g}]"
+        bound = f"in [{lo:g}, {hi:g}]"
         raise ValueError(f"{name} must be {bound} (beyond, the kinetic metric overflows float64; scale all masses "
                          f"together to bring them in: the geodesics do not change), got {v[~ok]}")
     return v
