@@ -26,9 +26,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from .compiled import compiled
 from .metric import InducedMetric
-from .precision import as_fp, resolve_fp_type
+from .precision import as_fp, resolve_fp_type, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
-from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
+from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, PointDense, Segment, SolverStats, SolveStatus
 from .steppers import Stepper, TaylorStepper
 from .symbolic import SymbolicChart
 from .validation import check_bool, check_index, check_real, check_time_grid, real_array
@@ -171,7 +171,15 @@ def solve_chart_exp_ode(
         carried = np.zeros(0, dtype=a.dtype)  # what a stepper carries after (a, c): ambient, the same in every chart
         if switching and float(atlas.charts[i].quality(a.astype(float))) < q_event:
             i, a, c = _switch(sol, i, a, c, t, q_event)  # its event would never fire: it starts past it
-        while True:
+        if _at_rest(num[i], a, c, t_end):
+            # the geodesic is the start to the working precision; a stepper would see no scale of time at all
+            # (Sundman's time ran to |tau| = 1e30 without moving, and raised)
+            y = np.concatenate([a, c])
+            sol.segments.append(Segment(i, t, fp_type(t_end), 0, PointDense(y) if dense else None))
+            if grid is not None:
+                sol.points, sol.velocities = num[i].point_velocity_states(np.repeat(y[None, :], len(grid), axis=0))
+            t = fp_type(t_end)
+        while t != t_end:
             adv = advance(t, np.concatenate([a, c, carried]), fp_type(t_end), num[i].pars, dense or grid is not None)
             sol.segments.append(Segment(i, t, adv.t, adv.n_steps, adv.dense if dense else None))
             _, _, E = num[i].point_velocity_energy(adv.step_states[:, :k].T, adv.step_states[:, k : 2 * k].T)
@@ -296,6 +304,14 @@ def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t: Any, q_out
     gap = float(np.max(np.abs((p_j - p).astype(float))))
     sol.switches.append(ChartSwitch(float(t), i, j, q_from, q_to, gap))
     return j, a_j, num[j].coefficients(a_j, v)
+
+
+def _at_rest(num: Any, a: NDArray, c: NDArray, t_end: float) -> bool:
+    """Whether the motion from ``(a, c)`` stays at its start to the working precision over ``|t_end|``: its embedded
+    speed times the time below the unit roundoff of the point's size (a zero velocity, or one of 1e-300)."""
+    p, v, _ = num.point_velocity_energy(a[:, None], c[:, None])
+    travel = float(np.max(np.abs(v.astype(float)))) * abs(t_end)
+    return travel <= unit_roundoff(num.fp) * max(1.0, float(np.max(np.abs(p.astype(float)))))
 
 
 def _as_vector(x: ArrayLike, name: str, N: int) -> NDArray:

@@ -123,3 +123,18 @@ def test_the_start_point_is_never_moved(gap):
     assert np.abs(motion(0.0)[0] - h0).max() <= START_POINT_TOLERANCE * np.abs(h0).max()
     if motion.success:
         assert motion.relative_energy_error <= 1e-10
+
+
+@pytest.mark.parametrize("scale", [0.0, 1e-300, 1e-20])
+@pytest.mark.parametrize("method", ["charts", "hinges"])
+def test_a_chain_at_rest_stays_there(scale, method):
+    """A zero velocity, or one too small to move the chain within the working precision over the run: the motion is
+    the start, in both methods (the chart method in Sundman's time ran its time to |tau| = 1e30 and raised)."""
+    from linkage.sampling import sample_starts
+
+    chain = Chain(4, 2.6)
+    H, V = sample_starts(chain, 1, 0.5, np.random.default_rng(0))
+    motion = free_motion(chain, H[0], scale * V[0], 2.0, method=method, t_eval=[0.0, 1.0, 2.0])
+    assert motion.success
+    assert np.abs(motion.hinges - H[0]).max() <= 1e-15 and np.abs(motion(2.0)[0] - H[0]).max() <= 1e-15
+    assert np.abs(motion.velocities).max() <= scale * np.abs(V[0]).max() * 1.01
