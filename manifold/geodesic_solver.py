@@ -171,7 +171,8 @@ def solve_chart_exp_ode(
         carried = np.zeros(0, dtype=a.dtype)  # what a stepper carries after (a, c): ambient, the same in every chart
         if switching and float(atlas.charts[i].quality(a.astype(float))) < q_event:
             i, a, c = _switch(sol, i, a, c, t, q_event)  # its event would never fire: it starts past it
-        if _at_rest(num[i], a, c, t_end):
+        at_rest = _at_rest(num[i], a, c, t_end)
+        if at_rest:
             # the geodesic is the start to the working precision; a stepper would see no scale of time at all
             # (Sundman's time ran to |tau| = 1e30 without moving, and raised)
             y = np.concatenate([a, c])
@@ -179,7 +180,7 @@ def solve_chart_exp_ode(
             if grid is not None:
                 sol.points, sol.velocities = num[i].point_velocity_states(np.repeat(y[None, :], len(grid), axis=0))
             t = fp_type(t_end)
-        while t != t_end:
+        while not at_rest:
             adv = advance(t, np.concatenate([a, c, carried]), fp_type(t_end), num[i].pars, dense or grid is not None)
             sol.segments.append(Segment(i, t, adv.t, adv.n_steps, adv.dense if dense else None))
             _, _, E = num[i].point_velocity_energy(adv.step_states[:, :k].T, adv.step_states[:, k : 2 * k].T)
