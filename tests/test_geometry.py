@@ -147,12 +147,13 @@ def test_transport_agrees_with_an_independent_numpy_integration(where, masses):
 
 
 def test_transport_runs_in_every_precision():
-    """long double and real128 keep the isometry to their own precision (1e-16 and 1e-28 relative, over T = 5)."""
+    """long double, real128 and 150-bit MultiPrecision keep the isometry to their own precision (1e-16, 1e-28 and
+    1e-40 relative, over T = 5); a Jacobi field runs in MultiPrecision too, its invariants checked by the solve."""
     chain = Chain(4, 2.6, hinge_masses=[1.0, 2.0, 0.5])
     rng = np.random.default_rng(2)
     H, V = sample_starts(chain, 1, 0.5, rng)
     w0 = _random_tangent(chain, H[0], rng)
-    for fp_type, bound in (("longdouble", 1e-16), ("real128", 1e-28)):
+    for fp_type, bound in (("longdouble", 1e-16), ("real128", 1e-28), ("mp150", 1e-40)):
         pt = geometry.parallel_transport(chain, H[0], V[0], w0, 5.0, fp_type=fp_type)
         _, v, values = pt.carried(np.array([0.0, 5.0]))
         W = values[0]["vectors"][:, 0]
@@ -161,6 +162,8 @@ def test_transport_runs_in_every_precision():
         angle = [W[i] @ K @ v[i] for i in range(2)]
         assert float(abs(norm[1] - norm[0]) / norm[0]) <= bound
         assert float(abs(angle[1] - angle[0]) / norm[0]) <= 10 * bound
+    jf = geometry.jacobi_field(chain, H[0], V[0], 0 * w0, w0, 2.0, fp_type="mp150")
+    assert jf.carried.solution.success and jf.carried.solution.relative_energy_error <= 1e-40
 
 
 def _geodesic_end(hc: HingeConstraints, chain: Chain, x0, v0, ts):
