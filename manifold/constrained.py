@@ -54,6 +54,7 @@ from numpy.typing import ArrayLike, NDArray
 from .artefacts import ArtefactStore
 from .carried import CarriedTerm, carried_violation, slot_ranges
 from .expression_linalg import ldl_solve
+from .interrupt import INTERRUPTED, SolveInterrupted, interruptible
 from .metric import InducedMetric
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
@@ -688,7 +689,8 @@ def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float
     -------
     tuple
         ``(status, message)``: :attr:`SolveStatus.SUCCESS` and ``"reached t_final"``,
-        else the energy failure, the constraint failure or the stepper failure (in that order).
+        else the energy failure, the constraint failure, an interrupt (:data:`manifold.interrupt.INTERRUPTED`) or
+        the stepper failure (in that order).
     """
     if energy_violation is not None:
         return SolveStatus.ENERGY_CHECK_FAILED, energy_violation
@@ -697,6 +699,8 @@ def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float
         return SolveStatus.CONSTRAINT_CHECK_FAILED, (
             f"constraint check failed by t = {t:.6g}: max_k |c_k| = {drift:.3g} exceeds "
             f"1000 sqrt(steps + 1) tol = {bound:.3g}")
+    if failure == INTERRUPTED:
+        return SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t}"
     if failure is not None:
         return SolveStatus.STEPPER_FAILED, f"integration failed at t = {t}: {failure}"
     return SolveStatus.SUCCESS, "reached t_final"
@@ -837,7 +841,8 @@ def solve_constrained(
     n_grid, project_seconds = 0, 0.0
     t = fp_type(0.0)
     with solve_progress(report, sol) as reports, comp.integrator(fp_type, tol, stabilisation == "baumgarte",
-                                                                      compact_mode, carry) as ta:
+                                                                      compact_mode, carry) as ta, \
+            interruptible() as pressed:
         compile_seconds = time.perf_counter() - t_compile
         pars = comp.layout.pack(system, alpha, fp_type)
         for end in ends:
@@ -860,6 +865,8 @@ def solve_constrained(
                 violation = carried_violation(term, geo, adv.step_states, first, sl, adv.step_times, sol.n_steps, eps)
                 if status is SolveStatus.SUCCESS and violation is not None:
                     status, message = SolveStatus.CARRIED_CHECK_FAILED, violation
+            if status is SolveStatus.SUCCESS and pressed():  # Ctrl-C between segments: stop at a whole one
+                status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {float(t)}"
             if status is not SolveStatus.SUCCESS:
                 break
             if stabilisation == "projection" and end != ends[-1]:
@@ -872,6 +879,8 @@ def solve_constrained(
     sol.stats = SolverStats(sol.n_steps, 0, 0, compile_seconds, project_seconds, time.perf_counter() - wall0)
     if reports is not None:
         reports.done(t, message)
+    if status is SolveStatus.INTERRUPTED:
+        raise SolveInterrupted(message, sol)
     if status is not SolveStatus.SUCCESS and throw:
         raise GeodesicIntegrationError(message, sol)
     return sol

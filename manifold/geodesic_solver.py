@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .compiled import compiled
+from .interrupt import INTERRUPTED, SolveInterrupted, interruptible
 from .metric import InducedMetric
 from .precision import as_fp, resolve_fp_type, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
@@ -165,7 +166,8 @@ def solve_chart_exp_ode(
     n_wraps, n_grid, status, message = 0, 0, SolveStatus.SUCCESS, ""
     t0 = time.perf_counter()
     with solve_progress(report, sol) as reports, stepper.session(family, fp_type, form=form, backward=backward,
-                                                                   switching=switching) as advance:
+                                                                   switching=switching) as advance, \
+            interruptible() as pressed:
         compile_seconds = time.perf_counter() - t0
         t = fp_type(0.0)
         carried = np.zeros(0, dtype=a.dtype)  # what a stepper carries after (a, c): ambient, the same in every chart
@@ -196,8 +198,13 @@ def solve_chart_exp_ode(
             if violation is not None:
                 status, message = SolveStatus.ENERGY_CHECK_FAILED, violation
                 break
+            if pressed() and adv.failure is None:  # Ctrl-C between segments: stop at a whole one
+                status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t} (chart {atlas.ids[i]})"
+                break
             if adv.failure is not None or adv.event is None:
-                if adv.failure is not None:
+                if adv.failure == INTERRUPTED:
+                    status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t} (chart {atlas.ids[i]})"
+                elif adv.failure is not None:
                     status, message = SolveStatus.STEPPER_FAILED, f"integration failed at t = {t}: {adv.failure} (chart {atlas.ids[i]})"
                 break
             if adv.event >= family.n_quality:  # a periodic parameter left [-pi, pi]: wrap it, same chart
@@ -221,6 +228,8 @@ def solve_chart_exp_ode(
                             time.perf_counter() - wall0)
     if reports is not None:
         reports.done(t, sol.message)
+    if status is SolveStatus.INTERRUPTED:
+        raise SolveInterrupted(message, sol)
     if status is not SolveStatus.SUCCESS and throw:
         raise GeodesicIntegrationError(message, sol)
     return sol

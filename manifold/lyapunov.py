@@ -42,6 +42,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, verdict
+from .interrupt import INTERRUPTED, SolveInterrupted, interruptible, propagate_until
 from .solution import SolveStatus, energy_violation
 from .steppers import MAX_TOLERANCE, taylor_relative_tolerance
 from .validation import check_bool, check_positive_int, check_real, real_array
@@ -230,12 +231,13 @@ def lyapunov_spectrum(
     ends = t_final * np.arange(1, n_intervals + 1) / n_intervals  # no sliver at the end
     logs, history, times, energies, energy_times = np.zeros(k), [], [], [], []
     t, n_steps, drift, failure = 0.0, 0, 0.0, None
-    with comp.tangent_integrator(k, tol, compact_mode) as ta:
+    with comp.tangent_integrator(k, tol, compact_mode) as ta, interruptible() as pressed:
         ta.pars[:] = comp.layout.pack(system, float(alpha[0]), float)[: len(ta.pars)]
         for end in ends:
             ta.time = t
             ta.state[:] = np.concatenate([x, v, (S_inv @ Y).T.ravel()])
-            outcome, _, _, steps, *_ = ta.propagate_until(float(end))
+            outcome, steps, interrupted = propagate_until(ta, float(end))
+            interrupted = interrupted or pressed()  # or between intervals
             n_steps += steps
             y = np.array(ta.state)
             x, v, t = y[:N], y[N : 2 * N], float(ta.time)
@@ -243,8 +245,8 @@ def lyapunov_spectrum(
             energies.append(float(Ek[0]))
             energy_times.append(t)
             drift = max(drift, float(np.max(np.abs(c))))
-            if outcome != hy.taylor_outcome.time_limit:
-                failure = str(outcome)
+            if interrupted or outcome != hy.taylor_outcome.time_limit:
+                failure = INTERRUPTED if interrupted else str(outcome)
                 break
             Y, Rk = np.linalg.qr(project(x, v, S @ y[2 * N :].reshape(k, 2 * N).T))
             logs += np.log(np.abs(np.diag(Rk)))
@@ -257,6 +259,8 @@ def lyapunov_spectrum(
     result = LyapunovResult(history[-1] if history else np.full(k, np.nan), np.array(times),
                             np.array(history).reshape(-1, k), deviations, interval, speed, n_steps,
                             float(np.max(dev, initial=0.0)), status, message)
+    if status is SolveStatus.INTERRUPTED:
+        raise SolveInterrupted(message, result)
     if throw and status is not SolveStatus.SUCCESS:
         raise LyapunovError(message, result)
     return result

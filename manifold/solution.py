@@ -75,6 +75,7 @@ class SolveStatus(enum.Enum):
     ENERGY_CHECK_FAILED = "the energy left its bound"
     CONSTRAINT_CHECK_FAILED = "the state left the constraints"
     CARRIED_CHECK_FAILED = "a quantity carried along the geodesic left its bound"
+    INTERRUPTED = "interrupted by Ctrl-C (KeyboardInterrupt)"
 
 
 class GeodesicIntegrationError(RuntimeError):

@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
+from .interrupt import INTERRUPTED, propagate_until
 from .precision import as_fp, is_double, unit_roundoff
 from .progress import step_callback
 from .solution import CallableDense, DenseOutput, PointDense, TaylorDense
@@ -183,9 +184,14 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     # The Taylor coefficients of each step, kept by a step callback: heyoka's c_output gives the same numbers
     # but builds a continuous_output (an LLVM state) on every call, ~2.5 ms per segment.
     callback = record if dense else progress
-    outcome, _, _, n_steps, *_ = ta.propagate_until(t_final, callback=callback, write_tc=dense)
-    y_end = np.array(ta.state)
-    event, failure = (None, None) if outcome == hy.taylor_outcome.time_limit else terminal_event(outcome, n_events)
+    outcome, n_steps, interrupted = propagate_until(ta, t_final, callback=callback, write_tc=dense)
+    y_end, t_end = np.array(ta.state), ta.time
+    event: int | None
+    failure: str | None
+    if interrupted:
+        event, failure = None, INTERRUPTED
+    else:
+        event, failure = (None, None) if outcome == hy.taylor_outcome.time_limit else terminal_event(outcome, n_events)
     out: DenseOutput | None = None
     if dense and n_steps > 0:
         out = TaylorDense(np.array(step_times), np.array(tcs), fp_type)
@@ -193,8 +199,8 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
         states = np.concatenate([out.tcs[1:, :, 0], y_end[None, :]])  # a step's order-0 term is its start
     else:
         out = PointDense(y_end) if dense else None
-        times, states = np.array([ta.time]), y_end[None, :]
-    return Advance(ta.time, y_end, n_steps, event, times, states, out, failure)
+        times, states = np.array([t_end]), y_end[None, :]
+    return Advance(t_end, y_end, n_steps, event, times, states, out, failure)
 
 
 def terminal_event(outcome: Any, n_events: int) -> tuple[int | None, str | None]:

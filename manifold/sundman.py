@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .compiled import CompiledFamily
+from .interrupt import INTERRUPTED, propagate_until
 from .precision import as_fp, unit_roundoff
 from .progress import step_callback
 from .solution import DenseOutput, PointDense, TaylorDense, polynomial_values
@@ -180,12 +181,14 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
             ta.pars[span_index] = 1 / clock["span"]
         return True
 
-    outcome, _, _, n_steps, *_ = ta.propagate_until(fp_type(TAU_LIMIT if forward else -TAU_LIMIT),
+    outcome, n_steps, interrupted = propagate_until(ta, fp_type(TAU_LIMIT if forward else -TAU_LIMIT),
                                                     callback=record, write_tc=dense)
     state = np.array(ta.state)
     y_end = state[:-1]
     event, failure, t_end = None, None, clock["origin"] + clock["span"] * state[-1]
-    if outcome == hy.taylor_outcome.time_limit:
+    if interrupted:  # the callback recorded the last step whole before the propagation stopped
+        failure = INTERRUPTED
+    elif outcome == hy.taylor_outcome.time_limit:
         failure = f"Sundman time reached |tau| = {TAU_LIMIT:g} before t_final"
     elif clock["stalled"]:
         failure = f"Sundman time stalled at t = {clock['now']}: the time factor vanished on the path"

@@ -1,0 +1,111 @@
+"""Long propagations that Ctrl-C stops within a fraction of a second, with their partial result.
+
+Python runs its signal handlers only between bytecodes, and heyoka's
+``propagate_until`` runs in C++: a ``KeyboardInterrupt`` pressed during one long
+propagation waited until it returned (a Lyapunov run near the stretched chain
+ignored Ctrl-C for over four minutes).  :func:`propagate_until` runs it in chunks
+of steps (heyoka's ``max_steps``), sized from the last chunk's wall time to take
+about :data:`CHUNK_SECONDS` each, and looks for a Ctrl-C between them and after
+every step a callback runs (a flag set by a temporary SIGINT handler: an
+exception raised inside a step callback could leave half of a step recorded).
+Chunks change no digit: a Taylor step depends only on the state it starts from,
+and events and cooldowns live in the integrator.  The solvers then stop with
+what they computed and raise :class:`SolveInterrupted`, a ``KeyboardInterrupt``
+that carries it.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import heyoka as hy
+
+__all__ = ["CHUNK_SECONDS", "INTERRUPTED", "SolveInterrupted", "interruptible", "propagate_until"]
+
+#: Wall time a chunk of steps is sized to take: how long a Ctrl-C waits at most, about.
+CHUNK_SECONDS = 0.1
+#: The first chunk's steps, before any is timed.
+FIRST_CHUNK = 64
+#: The failure message of an interrupted propagation.
+INTERRUPTED = "interrupted (KeyboardInterrupt)"
+
+
+class SolveInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a solve: a ``KeyboardInterrupt`` (so a script stops as usual) that carries the partial result.
+
+    Attributes
+    ----------
+    result
+        What was computed up to the interrupt (a :class:`~manifold.solution.GeodesicSolution`, or the
+        solver's own result type), with its status saying so.
+    """
+
+    def __init__(self, message: str, result: Any) -> None:
+        super().__init__(message)
+        self.result = result
+
+
+_STATE: dict[str, Any] = {"depth": 0, "pressed": False, "previous": None}
+
+
+def _on_interrupt(signum: int, frame: Any) -> None:
+    _STATE["pressed"] = True
+
+
+@contextmanager
+def interruptible() -> Iterator[Callable[[], bool]]:
+    """For the block: Ctrl-C sets a flag instead of raising, and the block gets the function that reads it.
+
+    Only in the main thread and only over Python's default SIGINT handler (any other handler is left alone, and a
+    block in another thread reads ``False``); nested blocks share the outermost one's flag, and the default
+    handler is back when it ends.
+    """
+    install = (threading.current_thread() is threading.main_thread()
+               and (_STATE["depth"] > 0 or signal.getsignal(signal.SIGINT) is signal.default_int_handler))
+    if install:
+        if _STATE["depth"] == 0:
+            _STATE["pressed"], _STATE["previous"] = False, signal.signal(signal.SIGINT, _on_interrupt)
+        _STATE["depth"] += 1
+    try:
+        yield (lambda: bool(_STATE["pressed"])) if install else (lambda: False)
+    finally:
+        if install:
+            _STATE["depth"] -= 1
+            if _STATE["depth"] == 0:
+                signal.signal(signal.SIGINT, _STATE["previous"])
+
+
+def propagate_until(ta: Any, t_limit: Any, *, callback: Callable[[Any], bool] | None = None,
+                    write_tc: bool = False) -> tuple[Any, int, bool]:
+    """``ta.propagate_until(t_limit, ...)`` in chunks of steps, stopping cleanly on Ctrl-C.
+
+    Within :func:`interruptible` (the solvers open one for the whole solve; this opens its own otherwise),
+    Ctrl-C only sets a flag: a step ``callback`` (Python, after every step) finishes its step and then stops
+    the propagation, and without one the next chunk boundary does.  So whatever a callback records stays whole,
+    and the state is that after the last accepted step.
+
+    Returns ``(outcome, steps, interrupted)``: heyoka's outcome of the last chunk, the steps of all of them, and
+    whether Ctrl-C stopped the propagation.
+    """
+    with interruptible() as pressed:
+        def stepped(ta: Any) -> bool:
+            go_on = callback(ta) if callback is not None else True
+            return bool(go_on) and not pressed()
+
+        total, chunk = 0, FIRST_CHUNK
+        while True:
+            t0 = time.perf_counter()
+            outcome, _, _, steps, *_ = ta.propagate_until(t_limit, callback=None if callback is None else stepped,
+                                                          write_tc=write_tc, max_steps=chunk)
+            total += steps
+            if pressed():
+                return outcome, total, True
+            if outcome != hy.taylor_outcome.step_limit:
+                return outcome, total, False
+            elapsed = time.perf_counter() - t0  # sizes the next chunk only: the steps do not depend on it
+            chunk = max(16, min(10**7, int(chunk * CHUNK_SECONDS / max(elapsed, 1e-6))))

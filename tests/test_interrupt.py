@@ -1,0 +1,66 @@
+"""Ctrl-C stops a long solve within a fraction of a second, with its partial result, and chunked propagation
+changes no digit.
+
+The interrupt is a real SIGINT sent to this process from a timer thread, during solves that would take minutes
+(T = 1e7); each solve is compiled first, so the interrupt lands in the integration.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+
+import numpy as np
+import pytest
+
+from linkage import Chain
+from linkage.motion import free_motion, lyapunov_exponent
+from linkage.sampling import sample_starts
+from manifold import SolveStatus
+from manifold import interrupt
+from manifold.interrupt import SolveInterrupted
+
+CHAIN = Chain(4, 2.6)
+H, V = sample_starts(CHAIN, 1, 0.5, np.random.default_rng(0))
+RUNS = {
+    "hinges": lambda T, **kw: free_motion(CHAIN, H[0], V[0], T, method="hinges", **kw),
+    "hinges, no dense output": lambda T, **kw: free_motion(CHAIN, H[0], V[0], T, method="hinges", dense=False, **kw),
+    "charts (Sundman's time)": lambda T, **kw: free_motion(CHAIN, H[0], V[0], T, **kw),
+    "lyapunov": lambda T, **kw: lyapunov_exponent(CHAIN, H[0], V[0], T, **kw),
+}
+
+
+@pytest.mark.parametrize("name", list(RUNS))
+def test_ctrl_c_stops_a_long_solve_with_its_partial_result(name):
+    run = RUNS[name]
+    run(1.0)  # compiled before the clock starts
+    threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+    with pytest.raises(SolveInterrupted) as info:
+        run(1e7)
+    assert isinstance(info.value, KeyboardInterrupt)
+    result = info.value.result
+    assert result.status is SolveStatus.INTERRUPTED and "KeyboardInterrupt" in str(info.value)
+    if name == "lyapunov":
+        assert 0 < result.times[-1] < 1e7 and np.all(np.isfinite(result.exponents))
+    else:
+        reached = float(result.t_reached)
+        assert 0 < reached < 1e7 and result.relative_energy_error <= 1e-12  # what it computed is sound
+        end_point, _ = result.end_state()
+        assert CHAIN.closure_residual(CHAIN.from_point(end_point.astype(float))) <= 1e-12
+        if name != "hinges, no dense output":
+            assert np.abs(result(reached)[0] - end_point).max() <= 1e-12
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_chunks_change_no_digit(monkeypatch):
+    """Propagated in chunks of 16 steps against one chunk per segment: the same states, bit for bit."""
+    monkeypatch.setattr(interrupt, "FIRST_CHUNK", 10**9)  # one chunk: heyoka's propagate_until as it is
+    whole = {name: RUNS[name](30.0) for name in ("hinges", "charts (Sundman's time)")}
+    monkeypatch.setattr(interrupt, "FIRST_CHUNK", 16)
+    monkeypatch.setattr(interrupt, "CHUNK_SECONDS", 0.0)  # every chunk 16 steps
+    for name, motion in whole.items():
+        chunked = RUNS[name](30.0)
+        ts = np.linspace(0, 30, 7)
+        assert chunked.n_steps == motion.n_steps
+        assert np.array_equal(chunked.solution(ts)[0], motion.solution(ts)[0])
