@@ -220,7 +220,11 @@ class HingeConstraints:
             The projected velocity, shape ``(2(n-1),)``.
         """
         G = self.jacobian(x)
-        return v - self.min_norm_correction(G, G @ v)
+        # Numerical trap: near the stretched chain (L within 1e-9 of the sum of the lengths) G K^-1 G^T has
+        # condition ~1/gap, and one projection leaves a normal part of ~cond eps (2e-8 of |v|, refused by the
+        # curvature code); a second, on the residual, takes it to rounding (iterative refinement)
+        once = v - self.min_norm_correction(G, G @ v)
+        return once - self.min_norm_correction(G, G @ once)
 
     def project_position(self, x: NDArray) -> NDArray:
         """Gauss-Newton projection of ``x`` onto the configuration space ``c = 0``.

@@ -276,3 +276,17 @@ def test_second_fundamental_form_of_a_chain_is_the_constraints_normal_accelerati
     bending = sum(constraint_form(a, b) @ K @ constraint_form(a, b) for a in E for b in E)
     assert abs(metric.bending(x) - bending) <= rtol * bending
     assert abs(metric.stiffness(x, w) - np.sqrt(constraint_form(w, w) @ K @ constraint_form(w, w))) <= rtol * scale
+
+
+def test_velocities_projected_in_hinge_space_are_tangent_for_the_charts_near_the_stretched_chain():
+    """L within 1e-9 of n: HingeConstraints.project_velocity's vectors are accepted by the curvature code (a single
+    projection left a normal part of 2e-8 of |v|, which sectional_curvature refused: one tolerance for both)."""
+    from linkage.constraints import HingeConstraints
+
+    chain = Chain(5, 5 - 1e-9)
+    rng = np.random.default_rng(0)
+    metric, hc = chain.metric(), HingeConstraints(chain)
+    for h in sample_configurations(chain, 5, rng):
+        x = chain.to_point(h)
+        u, v = (hc.project_velocity(x, rng.normal(size=x.shape)) for _ in range(2))
+        assert np.isfinite(metric.sectional_curvature(x, u, v))
