@@ -29,12 +29,15 @@ from manifold import GeodesicIntegrationError, SolveStatus, solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.carried import CarriedSolution, CarriedTerm, solve_carried
 from manifold.constrained import ConstrainedGeometry, solve_constrained
+from manifold.geodesic_solver import at_rest
+from manifold.precision import resolve_fp_type
 from manifold.jacobi import JacobiField
 from manifold.sundman import SundmanStepper
 from manifold.transport import ParallelTransport
 from manifold.validation import check_positive_int, check_real, check_time_grid
 
 from .chain import Chain
+from .diagonal_path import DiagonalPath
 from .constraints import ChainSystem, HingeConstraints, start_state
 from .time_factor import ChainTimeFactor
 
@@ -155,6 +158,9 @@ def _solve_in_charts(chain: Chain, x0: NDArray, v0: NDArray, T: float, term: Car
             raise TypeError(f"method='charts' does not take {name}= here (the stepper carries the term in the state "
                             "(a, J c), with dense output)")
     system = ChainSystem(chain)
+    if at_rest(x0, v0, T, resolve_fp_type(options.get("fp_type", float))):
+        # no chart motion to follow (Sundman's time would see no scale of time), but a Jacobi field still moves
+        return solve_carried(system, x0, v0, T, [term], **{k: v for k, v in options.items() if k != "q_out"})
     stepper = SundmanStepper(ChainTimeFactor(chain), tol=options.pop("tol", None),
                              velocity=ConstrainedVelocity(system, carry=(term,)))
     solution = solve_chart_exp_ode(chain.metric(), x0, v0, T, stepper=stepper, project_velocity=True, **options)
@@ -351,7 +357,8 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
     projection of ``hinges1 - hinges0`` onto the tangent space at ``hinges0``)
     is run; if none converges, a continuation follows the feasible path from
     ``hinges0`` to ``hinges1`` that is straight in the diagonals
-    (:meth:`linkage.Chain.path`), each point's log the first guess of the next.  The shortest geodesic found is returned.  Below the injectivity
+    (:meth:`linkage.Chain.path`; the projected chord where that path is not
+    built), each point's log the first guess of the next.  The shortest geodesic found is returned.  Below the injectivity
     radius it is the minimal one; beyond, it is the shortest found, not
     necessarily the shortest there is, and :attr:`LogResult.candidates` lists
     the lengths of all found.
@@ -417,7 +424,10 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
 
     if np.linalg.norm(x1 - x0) <= target:  # the same configuration: the zero velocity, no geodesic to integrate
         return LogResult(np.zeros(chain.n - 1, dtype=complex), 0.0, float(np.linalg.norm(x1 - x0)), 0, [0.0])
-    path = chain.path(h0, chain.from_point(x1))  # raises DifferentComponentsError first, at the cost of a few LPs
+    try:  # refuses another component first, at the cost of a few LPs
+        path: DiagonalPath | None = chain.path(h0, chain.from_point(x1))
+    except NotImplementedError:  # one component, joined only through a face where a diagonal vanishes
+        path = None
     found, misses = [], []
     for c in guesses:
         c, size, iterations = _newton(shooting(x1), c, target, max_iterations)
@@ -431,7 +441,12 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
         s, ds = 0.0, 0.25
         while ds >= 1.0 / 64:
             s_next = min(1.0, s + ds)
-            goal = x1 if s_next == 1.0 else chain.to_point(path(s_next)).astype(float)
+            if s_next == 1.0:
+                goal = x1
+            elif path is not None:
+                goal = chain.to_point(path(s_next)).astype(float)
+            else:  # the chord, projected onto the configuration space
+                goal = constraints.project_position(x0 + s_next * (x1 - x0))
             trial, size, steps = _newton(shooting(goal), c, target, max_iterations)
             if size > target:
                 ds /= 2

@@ -874,6 +874,9 @@ def solve_constrained(
                 xs, vs = geo.project(x[None, :], v[None, :])
                 x, v = xs[0], vs[0]
                 project_seconds += time.perf_counter() - p0
+        pressed_at_all = pressed()  # also where another failure ended the run: a Ctrl-C is never swallowed
+    if pressed_at_all and status is not SolveStatus.INTERRUPTED:
+        status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {float(t)} ({message})"
     sol.final_state = (None, x, v)
     sol.status, sol.message = status, message
     sol.stats = SolverStats(sol.n_steps, 0, 0, compile_seconds, project_seconds, time.perf_counter() - wall0)

@@ -173,8 +173,11 @@ def solve_chart_exp_ode(
         carried = np.zeros(0, dtype=a.dtype)  # what a stepper carries after (a, c): ambient, the same in every chart
         if switching and float(atlas.charts[i].quality(a.astype(float))) < q_event:
             i, a, c = _switch(sol, i, a, c, t, q_event)  # its event would never fire: it starts past it
-        at_rest = _at_rest(num[i], a, c, t_end)
-        if at_rest:
+        p_start, v_start, _ = num[i].point_velocity_energy(a[:, None], c[:, None])
+        # a stepper that carries terms (a Jacobi field moves even at rest) integrates as usual
+        carrying = isinstance(stepper, TaylorStepper) and stepper.velocity is not None and bool(stepper.velocity.carry)
+        rest = at_rest(p_start[0], v_start[0], t_end, fp_type) and not carrying
+        if rest:
             # the geodesic is the start to the working precision; a stepper would see no scale of time at all
             # (Sundman's time ran to |tau| = 1e30 without moving, and raised)
             y = np.concatenate([a, c])
@@ -182,7 +185,7 @@ def solve_chart_exp_ode(
             if grid is not None:
                 sol.points, sol.velocities = num[i].point_velocity_states(np.repeat(y[None, :], len(grid), axis=0))
             t = fp_type(t_end)
-        while not at_rest:
+        while not rest:
             adv = advance(t, np.concatenate([a, c, carried]), fp_type(t_end), num[i].pars, dense or grid is not None)
             sol.segments.append(Segment(i, t, adv.t, adv.n_steps, adv.dense if dense else None))
             _, _, E = num[i].point_velocity_energy(adv.step_states[:, :k].T, adv.step_states[:, k : 2 * k].T)
@@ -222,6 +225,9 @@ def solve_chart_exp_ode(
                 status, message = SolveStatus.NO_GOOD_CHART, str(e)
                 break
             switch_seconds += time.perf_counter() - s0
+        pressed_at_all = pressed()  # also where another failure ended the run: a Ctrl-C is never swallowed
+    if pressed_at_all and status is not SolveStatus.INTERRUPTED:
+        status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t} ({message or 'reached t_final'})"
     sol.final_state = (i, a, c)
     sol.status, sol.message = status, message or "reached t_final"
     sol.stats = SolverStats(sol.n_steps, sol.n_switches, n_wraps, compile_seconds, switch_seconds,
@@ -316,12 +322,13 @@ def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t: Any, q_out
     return j, a_j, num[j].coefficients(a_j, v)
 
 
-def _at_rest(num: Any, a: NDArray, c: NDArray, t_end: float) -> bool:
-    """Whether the motion from ``(a, c)`` stays at its start to the working precision over ``|t_end|``: its embedded
-    speed times the time below the unit roundoff of the point's size (a zero velocity, or one of 1e-300)."""
-    p, v, _ = num.point_velocity_energy(a[:, None], c[:, None])
-    travel = float(np.max(np.abs(v.astype(float)))) * abs(t_end)
-    return travel <= unit_roundoff(num.fp) * max(1.0, float(np.max(np.abs(p.astype(float)))))
+def at_rest(p: ArrayLike, v: ArrayLike, t_final: float, fp_type: Any) -> bool:
+    """Whether the geodesic from the point ``p`` with embedded velocity ``v`` stays at ``p`` to the precision of
+    ``fp_type`` over ``|t_final|``: ``max |v| |t_final|`` at most the unit roundoff times ``max |p|`` (a zero
+    velocity, or one of 1e-300; relative to the point's own size, so that a chain of nanometre rods still moves)."""
+    travel = float(np.max(np.abs(np.asarray(v).astype(float)))) * abs(float(t_final))
+    return travel <= unit_roundoff(fp_type) * max(float(np.max(np.abs(np.asarray(p).astype(float)))),
+                                                  np.finfo(float).tiny)
 
 
 def _as_vector(x: ArrayLike, name: str, N: int) -> NDArray:

@@ -252,10 +252,13 @@ def lyapunov_spectrum(
             logs += np.log(np.abs(np.diag(Rk)))
             history.append(logs / t)
             times.append(t)
+        pressed_at_all = pressed()  # also where another failure ended the run: a Ctrl-C is never swallowed
     eps = taylor_relative_tolerance(tol, float)
     dev = np.abs(np.array(energies) - E0) / E0
     status, message = verdict(energy_violation(dev, energy_times, n_steps, eps, "ambient coordinates"), drift,
                               n_steps, eps, t, failure)
+    if pressed_at_all and status is not SolveStatus.INTERRUPTED:
+        status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t} ({message})"
     result = LyapunovResult(history[-1] if history else np.full(k, np.nan), np.array(times),
                             np.array(history).reshape(-1, k), deviations, interval, speed, n_steps,
                             float(np.max(dev, initial=0.0)), status, message)

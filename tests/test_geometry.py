@@ -454,3 +454,29 @@ def test_transport_and_jacobi_fields_in_charts_agree_with_hinge_coordinates(wher
          geometry.jacobi_field(chain, h0, v0, 0 * W0[0], W0[0], 10.0, ts)]
     assert np.abs(J[0].field - J[1].field).max() <= 1e-10 * max(1.0, np.abs(J[1].field).max())
     assert np.abs(J[0].field_derivative - J[1].field_derivative).max() <= 1e-10 * max(1.0, np.abs(J[1].field).max())
+
+
+@pytest.mark.parametrize("scale", [0.0, 1e-20])
+def test_a_jacobi_field_along_a_chain_at_rest_grows_linearly_in_both_methods(scale):
+    """At rest the geodesic is a point and a Jacobi field is J0 + t U0; method='charts' hands such a start to the
+    hinge coordinates (the chart solver's at-rest shortcut would carry nothing)."""
+    chain = Chain(5, 3.4)
+    rng = np.random.default_rng(2)
+    h0 = sample_starts(chain, 1, 0.5, rng)[0][0]
+    v0 = scale * _random_tangent(chain, h0, rng)
+    j0, u0 = _random_tangent(chain, h0, rng), _random_tangent(chain, h0, rng)
+    for method in ("charts", "hinges"):
+        jf = geometry.jacobi_field(chain, h0, v0, j0, u0, 2.0, [2.0], method=method)
+        assert np.abs(jf.field[-1] - (j0 + 2.0 * u0)).max() <= 1e-12
+
+
+def test_log_takes_configurations_joined_only_through_a_vanishing_diagonal():
+    """Flipping the turn of T_2 needs d_2 = 0 here (a face of lower dimension, where Chain.path is not built): two
+    configurations with a small d_2 and opposite turns are close, and log still finds the geodesic between them."""
+    chain = Chain([1, 1, 0.5, 0.5], 0.7)
+    x = np.array([0.05, 0.5])
+    h0, h1 = chain.from_diagonals(x, [1, 1, 1]), chain.from_diagonals(x, [-1, 1, 1])
+    with pytest.raises(NotImplementedError):
+        chain.path(h0, h1)
+    result = geometry.log(chain, h0, h1)
+    assert np.abs(geometry.exp(chain, h0, result.velocity) - h1).max() <= 1e-10

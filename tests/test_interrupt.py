@@ -64,3 +64,19 @@ def test_chunks_change_no_digit(monkeypatch):
         ts = np.linspace(0, 30, 7)
         assert chunked.n_steps == motion.n_steps
         assert np.array_equal(chunked.solution(ts)[0], motion.solution(ts)[0])
+
+
+@pytest.mark.parametrize("method", ["hinges", "charts"])
+def test_a_ctrl_c_is_not_swallowed_by_a_failure_of_the_same_segment(monkeypatch, method):
+    """Ctrl-C pressed while the energy check fails the run: still a SolveInterrupted, even with throw=False."""
+    from manifold.solution import GeodesicSolution
+
+    def failing_check(self, start, tol, where):
+        os.kill(os.getpid(), signal.SIGINT)  # lands while the solver's flag handler is in place
+        return "energy check failed (planted)"
+
+    RUNS["hinges"](1.0)
+    monkeypatch.setattr(GeodesicSolution, "energy_violation", failing_check)
+    with pytest.raises(SolveInterrupted, match="planted"):
+        free_motion(CHAIN, H[0], V[0], 5.0, method=method, throw=False)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
