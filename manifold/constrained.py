@@ -54,7 +54,8 @@ from numpy.typing import ArrayLike, NDArray
 from .artefacts import ArtefactStore
 from .carried import CarriedTerm, carried_violation, slot_ranges
 from .expression_linalg import ldl_solve
-from .interrupt import INTERRUPTED, SolveInterrupted, interruptible
+from .budget import DEFAULT_BUDGET, Budget, spending, spent_message
+from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible
 from .metric import InducedMetric
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
@@ -701,6 +702,8 @@ def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float
             f"1000 sqrt(steps + 1) tol = {bound:.3g}")
     if failure == INTERRUPTED:
         return SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t}"
+    if failure == BUDGET:  # the solver words it (manifold.budget.spent_message): it knows the budget and t_final
+        return SolveStatus.BUDGET_EXCEEDED, f"{BUDGET} at t = {t}"
     if failure is not None:
         return SolveStatus.STEPPER_FAILED, f"integration failed at t = {t}: {failure}"
     return SolveStatus.SUCCESS, "reached t_final"
@@ -724,6 +727,7 @@ def solve_constrained(
     throw: bool = True,
     progress: ProgressArgument = None,
     carry: tuple[CarriedTerm, ...] = (),
+    budget: Budget = DEFAULT_BUDGET,
 ) -> GeodesicSolution:
     """Integrate the geodesic of ``system`` from ``(x0, v0)`` with heyoka's Taylor method, in ambient coordinates.
 
@@ -778,6 +782,9 @@ def solve_constrained(
         :func:`manifold.solve_chart_exp_ode`: ``True`` (a tqdm bar), a
         callable taking a :class:`~manifold.progress.ProgressUpdate`,
         ``False``, or ``None`` (only inside a :func:`manifold.progress.reporting` block).
+    budget
+        The :class:`~manifold.budget.Budget` of Taylor steps and dense-output bytes (default
+        :data:`~manifold.budget.DEFAULT_BUDGET`); spent, the solve stops with status ``BUDGET_EXCEEDED``.
     carry
         :class:`~manifold.carried.CarriedTerm` s integrated along (use :func:`manifold.carried.solve_carried`,
         which reads them back); their invariants are checked at every recorded step.  Not with
@@ -842,7 +849,7 @@ def solve_constrained(
     t = fp_type(0.0)
     with solve_progress(report, sol) as reports, comp.integrator(fp_type, tol, stabilisation == "baumgarte",
                                                                       compact_mode, carry) as ta, \
-            interruptible() as pressed:
+            interruptible() as pressed, spending(budget) as account:
         compile_seconds = time.perf_counter() - t_compile
         pars = comp.layout.pack(system, alpha, fp_type)
         for end in ends:
@@ -865,6 +872,8 @@ def solve_constrained(
                 violation = carried_violation(term, geo, adv.step_states, first, sl, adv.step_times, sol.n_steps, eps)
                 if status is SolveStatus.SUCCESS and violation is not None:
                     status, message = SolveStatus.CARRIED_CHECK_FAILED, violation
+            if status is SolveStatus.BUDGET_EXCEEDED:
+                message = spent_message(account, float(t), t_final)
             if status is SolveStatus.SUCCESS and pressed():  # Ctrl-C between segments: stop at a whole one
                 status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {float(t)}"
             if status is not SolveStatus.SUCCESS:

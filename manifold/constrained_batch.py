@@ -36,6 +36,9 @@ from .validation import check_bool, check_positive_int, check_real, check_time_g
 
 __all__ = ["solve_constrained_chunk", "solve_constrained_ensemble"]
 
+#: Batch sizes up to this many times heyoka's SIMD width are taken: wider batches only cost compile time and memory.
+MAX_BATCH_LANES = 4
+
 METHOD = "constrained-taylor batch (baumgarte)"
 
 
@@ -79,7 +82,8 @@ def solve_constrained_ensemble(
         Times (1-d, within ``[0, t_final]``, in integration order) at which
         states are kept, for every trajectory.
     batch_size
-        SIMD lanes per integrator, ``>= 1``; ``None``: ``heyoka.recommended_simd_size()``.
+        SIMD lanes per integrator, ``>= 1`` and at most :data:`MAX_BATCH_LANES` times
+        ``heyoka.recommended_simd_size()``; ``None``: ``heyoka.recommended_simd_size()``.
     chunk_size
         Trajectories per chunk of work (rounded up to whole batches);
         ``None``: :func:`manifold.ensemble.default_chunk_size` (four per thread, one per Dask worker thread).
@@ -109,6 +113,11 @@ def solve_constrained_ensemble(
     if x0.shape != v0.shape:
         raise ValueError(f"x0 and v0 must have the same shape, got {x0.shape} and {v0.shape}")
     lanes = hy.recommended_simd_size() if batch_size is None else check_positive_int("batch_size", batch_size)
+    if lanes > MAX_BATCH_LANES * hy.recommended_simd_size():
+        raise ValueError(f"batch_size={lanes} is beyond what SIMD makes useful: heyoka's SIMD width here is "
+                         f"{hy.recommended_simd_size()}, and batch sizes up to {MAX_BATCH_LANES} times it are taken "
+                         "(a 1000-lane integrator took 1.7 GB and minutes to compile); use chunk_size= and "
+                         "backend= to run more trajectories at once")
     n = x0.shape[0]
     size = (default_chunk_size(n, lanes, backend, client) if chunk_size is None
             else lanes * -(-check_positive_int("chunk_size", chunk_size) // lanes))

@@ -25,7 +25,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .compiled import compiled
-from .interrupt import INTERRUPTED, SolveInterrupted, interruptible
+from .budget import DEFAULT_BUDGET, Budget, spending, spent_message
+from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible
 from .metric import InducedMetric
 from .precision import as_fp, resolve_fp_type, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
@@ -74,6 +75,7 @@ def solve_chart_exp_ode(
     chart: int | None = None,
     throw: bool = True,
     progress: ProgressArgument = None,
+    budget: Budget = DEFAULT_BUDGET,
 ) -> GeodesicSolution:
     """Integrate the geodesic from point ``p0`` with velocity ``v0`` for ``0 <= t <= t_final``.
 
@@ -132,6 +134,10 @@ def solve_chart_exp_ode(
         ``True`` (a tqdm bar), a callable taking a
         :class:`~manifold.progress.ProgressUpdate`, ``False``, or ``None``
         (report only inside a :func:`manifold.progress.reporting` block).
+    budget
+        The :class:`~manifold.budget.Budget` of Taylor steps and dense-output bytes (default
+        :data:`~manifold.budget.DEFAULT_BUDGET`); spent, the solve stops with status ``BUDGET_EXCEEDED``
+        and a message that names the budget and the estimated need.
 
     Returns
     -------
@@ -167,7 +173,7 @@ def solve_chart_exp_ode(
     t0 = time.perf_counter()
     with solve_progress(report, sol) as reports, stepper.session(family, fp_type, form=form, backward=backward,
                                                                    switching=switching) as advance, \
-            interruptible() as pressed:
+            interruptible() as pressed, spending(budget) as account:
         compile_seconds = time.perf_counter() - t0
         t = fp_type(0.0)
         carried = np.zeros(0, dtype=a.dtype)  # what a stepper carries after (a, c): ambient, the same in every chart
@@ -207,6 +213,8 @@ def solve_chart_exp_ode(
             if adv.failure is not None or adv.event is None:
                 if adv.failure == INTERRUPTED:
                     status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t} (chart {atlas.ids[i]})"
+                elif adv.failure == BUDGET:
+                    status, message = SolveStatus.BUDGET_EXCEEDED, spent_message(account, float(t), t_end)
                 elif adv.failure is not None:
                     status, message = SolveStatus.STEPPER_FAILED, f"integration failed at t = {t}: {adv.failure} (chart {atlas.ids[i]})"
                 break

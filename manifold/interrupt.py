@@ -25,7 +25,7 @@ from typing import Any
 
 import heyoka as hy
 
-__all__ = ["CHUNK_SECONDS", "INTERRUPTED", "SolveInterrupted", "interruptible", "propagate_until"]
+__all__ = ["BUDGET", "CHUNK_SECONDS", "INTERRUPTED", "SolveInterrupted", "interruptible", "propagate_until"]
 
 #: Wall time a chunk of steps is sized to take: how long a Ctrl-C waits at most, about.
 CHUNK_SECONDS = 0.1
@@ -33,6 +33,8 @@ CHUNK_SECONDS = 0.1
 FIRST_CHUNK = 64
 #: The failure message of an interrupted propagation.
 INTERRUPTED = "interrupted (KeyboardInterrupt)"
+#: The failure message of a propagation stopped by its budget of steps (:mod:`manifold.budget`).
+BUDGET = "budget spent"
 
 
 class SolveInterrupted(KeyboardInterrupt):
@@ -81,7 +83,7 @@ def interruptible() -> Iterator[Callable[[], bool]]:
 
 
 def propagate_until(ta: Any, t_limit: Any, *, callback: Callable[[Any], bool] | None = None,
-                    write_tc: bool = False) -> tuple[Any, int, bool]:
+                    write_tc: bool = False, max_steps: int | None = None) -> tuple[Any, int, str | None]:
     """``ta.propagate_until(t_limit, ...)`` in chunks of steps, stopping cleanly on Ctrl-C.
 
     Within :func:`interruptible` (the solvers open one for the whole solve; this opens its own otherwise),
@@ -89,8 +91,10 @@ def propagate_until(ta: Any, t_limit: Any, *, callback: Callable[[Any], bool] | 
     the propagation, and without one the next chunk boundary does.  So whatever a callback records stays whole,
     and the state is that after the last accepted step.
 
-    Returns ``(outcome, steps, interrupted)``: heyoka's outcome of the last chunk, the steps of all of them, and
-    whether Ctrl-C stopped the propagation.
+    With ``max_steps`` (a :mod:`manifold.budget` allowance) it takes at most that many steps.
+
+    Returns ``(outcome, steps, stop)``: heyoka's outcome of the last chunk, the steps of all of them, and
+    :data:`INTERRUPTED` if Ctrl-C stopped the propagation, :data:`BUDGET` if ``max_steps`` did, else ``None``.
     """
     with interruptible() as pressed:
         def stepped(ta: Any) -> bool:
@@ -99,13 +103,16 @@ def propagate_until(ta: Any, t_limit: Any, *, callback: Callable[[Any], bool] | 
 
         total, chunk = 0, FIRST_CHUNK
         while True:
+            if max_steps is not None and total >= max_steps:
+                return hy.taylor_outcome.step_limit, total, BUDGET
             t0 = time.perf_counter()
+            size = chunk if max_steps is None else min(chunk, max_steps - total)
             outcome, _, _, steps, *_ = ta.propagate_until(t_limit, callback=None if callback is None else stepped,
-                                                          write_tc=write_tc, max_steps=chunk)
+                                                          write_tc=write_tc, max_steps=size)
             total += steps
             if pressed():
-                return outcome, total, True
+                return outcome, total, INTERRUPTED
             if outcome != hy.taylor_outcome.step_limit:
-                return outcome, total, False
+                return outcome, total, None
             elapsed = time.perf_counter() - t0  # sizes the next chunk only: the steps do not depend on it
             chunk = max(16, min(10**7, int(chunk * CHUNK_SECONDS / max(elapsed, 1e-6))))

@@ -236,8 +236,8 @@ def lyapunov_spectrum(
         for end in ends:
             ta.time = t
             ta.state[:] = np.concatenate([x, v, (S_inv @ Y).T.ravel()])
-            outcome, steps, interrupted = propagate_until(ta, float(end))
-            interrupted = interrupted or pressed()  # or between intervals
+            outcome, steps, stop = propagate_until(ta, float(end))
+            interrupted = stop == INTERRUPTED or pressed()  # or between intervals
             n_steps += steps
             y = np.array(ta.state)
             x, v, t = y[:N], y[N : 2 * N], float(ta.time)

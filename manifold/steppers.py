@@ -27,7 +27,8 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
-from .interrupt import INTERRUPTED, propagate_until
+from .budget import allowance, dense_bytes_per_step, spend
+from .interrupt import propagate_until
 from .precision import as_fp, is_double, unit_roundoff
 from .progress import step_callback
 from .solution import CallableDense, DenseOutput, PointDense, TaylorDense
@@ -184,12 +185,15 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     # The Taylor coefficients of each step, kept by a step callback: heyoka's c_output gives the same numbers
     # but builds a continuous_output (an LLVM state) on every call, ~2.5 ms per segment.
     callback = record if dense else progress
-    outcome, n_steps, interrupted = propagate_until(ta, t_final, callback=callback, write_tc=dense)
+    per_step = dense_bytes_per_step(ta) if dense else 0
+    outcome, n_steps, stop = propagate_until(ta, t_final, callback=callback, write_tc=dense,
+                                             max_steps=allowance(per_step))
+    spend(n_steps, per_step)
     y_end, t_end = np.array(ta.state), ta.time
     event: int | None
     failure: str | None
-    if interrupted:
-        event, failure = None, INTERRUPTED
+    if stop is not None:
+        event, failure = None, stop
     else:
         event, failure = (None, None) if outcome == hy.taylor_outcome.time_limit else terminal_event(outcome, n_events)
     out: DenseOutput | None = None

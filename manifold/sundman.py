@@ -37,7 +37,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .compiled import CompiledFamily
-from .interrupt import INTERRUPTED, propagate_until
+from .budget import allowance, dense_bytes_per_step, spend
+from .interrupt import propagate_until
 from .precision import as_fp, unit_roundoff
 from .progress import step_callback
 from .solution import DenseOutput, PointDense, TaylorDense, polynomial_values
@@ -181,13 +182,15 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
             ta.pars[span_index] = 1 / clock["span"]
         return True
 
-    outcome, n_steps, interrupted = propagate_until(ta, fp_type(TAU_LIMIT if forward else -TAU_LIMIT),
-                                                    callback=record, write_tc=dense)
+    per_step = dense_bytes_per_step(ta) if dense else 0
+    outcome, n_steps, stop = propagate_until(ta, fp_type(TAU_LIMIT if forward else -TAU_LIMIT), callback=record,
+                                             write_tc=dense, max_steps=allowance(per_step))
+    spend(n_steps, per_step)
     state = np.array(ta.state)
     y_end = state[:-1]
     event, failure, t_end = None, None, clock["origin"] + clock["span"] * state[-1]
-    if interrupted:  # the callback recorded the last step whole before the propagation stopped
-        failure = INTERRUPTED
+    if stop is not None:  # Ctrl-C or the budget: the callback recorded the last step whole before it stopped
+        failure = stop
     elif outcome == hy.taylor_outcome.time_limit:
         failure = f"Sundman time reached |tau| = {TAU_LIMIT:g} before t_final"
     elif clock["stalled"]:

@@ -1,0 +1,110 @@
+"""Bounded work and memory: a solve spends at most a budget of Taylor steps and of dense-output bytes.
+
+A chain whose light hinge whips (masses 1e-8 .. 1e8: millions of steps per unit time) or a long run with dense
+output (T = 1e5 at n = 4: 6.3 GB) used to run until the machine gave out.  Every solve now spends from a
+:class:`Budget` (:data:`DEFAULT_BUDGET` unless given): :func:`spending` opens it for the solve, and each Taylor
+propagation asks :func:`allowance` how many steps it may take, given the bytes each of its steps keeps.  When the
+budget is spent the solve stops with what it computed (status ``BUDGET_EXCEEDED``), and the message names the
+budget and the estimated need, extrapolated from the time reached.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["Budget", "DEFAULT_BUDGET", "allowance", "dense_bytes_per_step", "spend", "spending", "spent_message"]
+
+
+@dataclass(frozen=True)
+class Budget:
+    """How much one solve may spend.
+
+    Attributes
+    ----------
+    steps
+        Taylor steps, all segments together (default 1e8: minutes of CPU at the steps' usual cost).
+    dense_bytes
+        Bytes of dense output kept (default 2 GiB, estimated per step from the Taylor coefficients' size).
+    """
+
+    steps: int = 10**8
+    dense_bytes: int = 2 * 2**30
+
+    def __post_init__(self) -> None:
+        for name in ("steps", "dense_bytes"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"Budget.{name} must be an integer >= 1, got {value!r}")
+
+
+#: The budget of a solve that is given none.
+DEFAULT_BUDGET = Budget()
+
+
+@dataclass
+class _Account:
+    budget: Budget
+    steps: int = 0
+    dense_bytes: int = 0
+    per_step: int = 0  # bytes a dense step kept, the last time one was asked for
+
+
+_ACCOUNT: ContextVar[_Account | None] = ContextVar("manifold_budget", default=None)
+
+
+@contextmanager
+def spending(budget: Budget) -> Iterator[_Account]:
+    """Within the block, Taylor propagations spend from ``budget`` (see the module docstring)."""
+    if not isinstance(budget, Budget):
+        raise TypeError(f"budget must be a manifold.budget.Budget, got {budget!r}")
+    account = _Account(budget)
+    token = _ACCOUNT.set(account)
+    try:
+        yield account
+    finally:
+        _ACCOUNT.reset(token)
+
+
+def allowance(bytes_per_step: int) -> int | None:
+    """Steps the next propagation may take, keeping ``bytes_per_step`` of dense output each (0 for none);
+    ``None`` outside a :func:`spending` block (no limit)."""
+    account = _ACCOUNT.get()
+    if account is None:
+        return None
+    account.per_step = max(account.per_step, bytes_per_step) if bytes_per_step else account.per_step
+    left = account.budget.steps - account.steps
+    if bytes_per_step:
+        left = min(left, (account.budget.dense_bytes - account.dense_bytes) // bytes_per_step)
+    return max(left, 0)
+
+
+def dense_bytes_per_step(ta: Any) -> int:
+    """Bytes one step of dense output keeps: the integrator's Taylor coefficients and the step's time (objects of
+    software floating types, real128 and MultiPrecision, counted at 64 bytes each: an estimate)."""
+    tc = ta.tc
+    item = tc.itemsize if tc.dtype != object else 64
+    return int(tc.size * item + item)
+
+
+def spend(steps: int, bytes_per_step: int) -> None:
+    """Record ``steps`` taken, each keeping ``bytes_per_step`` of dense output (outside a block: nothing)."""
+    account = _ACCOUNT.get()
+    if account is not None:
+        account.steps += steps
+        account.dense_bytes += steps * bytes_per_step
+
+
+def spent_message(account: _Account, t: float, t_final: float) -> str:
+    """The sentence of a solve stopped by its budget at ``t``: the budget, and the need extrapolated to ``t_final``."""
+    scale = abs(t_final) / abs(t) if t else float("inf")
+    need = f"about {account.steps * scale:.3g} steps"
+    if account.per_step:
+        need += f" and {account.dense_bytes * scale / 2**30:.3g} GiB of dense output ({account.per_step} bytes a step)"
+    return (f"the budget of {account.budget.steps:.3g} steps and {account.budget.dense_bytes / 2**30:.3g} GiB of "
+            f"dense output is spent at t = {t:.6g}: reaching t_final = {t_final:g} would take {need}; pass "
+            "budget=manifold.budget.Budget(...) to allow it, or dense=False (and no t_eval, whose grid is read from "
+            "a segment's dense output) to keep only the end state")
