@@ -83,7 +83,7 @@ def conclusions(res: dict) -> str:
         out.append(f"* **Speed at equal error (n = {wp['n']}).** DOP853's wall time divided by ours, on the same "
                    f"chart ODE and switch rule: {ratio}; {verdict}. Our best error is {best_ours:.0e}, "
                    f"DOP853's {best_dop:.0e} (the geodesic flow amplifies errors exponentially over long horizons: "
-                   f"the demo measures e^(0.175 t) for n = 4).")
+                   f"the demo measures e^(0.134 t) for n = 4).")
     lr = res["long_run"]["curves"]
     s = lr[report.OURS]["slope"]
     law = "closer to Brouwer's law (slope 0.5, error ~ sqrt(t)) than to linear drift (slope 1)" if s < 0.75 \
