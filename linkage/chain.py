@@ -207,12 +207,8 @@ class Chain:
         (:func:`linkage.diagonal_path.diagonal_path`); ``path(s)`` gives the hinges at ``s`` in ``[0, 1]``.
         Raises :class:`~linkage.diagonal_path.DifferentComponentsError` (a ``ValueError``) if they lie in
         different connected components."""
-        h0 = self.check_configuration(hinges0, tol=1e-9)
-        h1 = self.check_configuration(hinges1, tol=1e-9)
-        for name, h in (("hinges0", h0), ("hinges1", h1)):
-            if h.shape != (self.n - 1,):
-                raise ValueError(f"{name} must be one configuration, shape (n - 1,) = ({self.n - 1},), got {h.shape}")
-        return diagonal_path(self.diagonal_space(), h0, h1)
+        return diagonal_path(self.diagonal_space(), self.check_one_configuration(hinges0, "hinges0"),
+                             self.check_one_configuration(hinges1, "hinges1"))
 
     # -- mass model ---------------------------------------------------------------
     @property
@@ -341,6 +337,14 @@ class Chain:
             raise ConfigurationError(
                 f"configuration does not close: max relative rod-length error {np.max(res):.3g} exceeds tol = {tol:g}"
             )
+        return h
+
+    def check_one_configuration(self, hinges: ArrayLike, name: str, hint: str = "") -> NDArray:
+        """:meth:`check_configuration` (to 1e-9) of one configuration: ``ValueError`` naming ``name`` for any other
+        shape than ``(n-1,)`` (``hint`` appended to the message)."""
+        h = self.check_configuration(hinges, tol=1e-9)
+        if h.shape != (self.n - 1,):
+            raise ValueError(f"{name} must be one configuration, shape (n - 1,) = ({self.n - 1},), got {h.shape}{hint}")
         return h
 
     def angles(self, hinges: ArrayLike) -> NDArray:

@@ -142,6 +142,11 @@ class HingeConstraints:
         Gv = np.einsum("...kj,...j->...k", self.jacobian(x), v)
         return np.max(self.lengths * np.abs(Gv), axis=-1)
 
+    def tangency_allowance(self, v: NDArray, tangent_tol: float) -> NDArray:
+        """``tangent_tol * max(1, |v|)``: how large :meth:`tangency_residual` may be for ``v`` (``(..., 2(n-1))``) to
+        count as tangent; the one rule of every start and tangent-vector check in ``linkage``."""
+        return tangent_tol * np.maximum(1.0, np.linalg.norm(v, axis=-1))
+
     def min_norm_correction(self, G: NDArray, r: NDArray) -> NDArray:
         """The K-smallest ``d`` with ``G d = r``.
 
@@ -308,10 +313,7 @@ def start_state(
     """
     project_velocity = check_bool("project_velocity", project_velocity)
     chain.check_generic()
-    h0 = chain.check_configuration(hinges0, tol=1e-9)
-    if h0.shape != (chain.n - 1,):
-        raise ValueError(f"hinges0 must be one configuration, shape (n - 1,) = ({chain.n - 1},), got {h0.shape} "
-                         "(for many starts at once: free_motions)")
+    h0 = chain.check_one_configuration(hinges0, "hinges0", " (for many starts at once: free_motions)")
     v0 = chain.as_hinges(velocity0, "velocity0")
     if v0.shape != (chain.n - 1,):
         raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
@@ -324,12 +326,12 @@ def start_state(
     if not np.isfinite(energy):
         raise ValueError(f"velocity0 gives a non-finite kinetic energy (max |velocity0| = {np.max(np.abs(v0)):.3g})")
     residual = float(system.tangency_residual(x0, v0))
-    scale = max(1.0, float(np.linalg.norm(v0)))
-    if residual > tangent_tol * scale:
+    allowed = float(system.tangency_allowance(v0, tangent_tol))
+    if residual > allowed:
         if not project_velocity:
             raise ValueError(
                 f"velocity0 is not tangent to the configuration space: max_k l_k |(G v)_k| = {residual:.3g} "
-                f"exceeds tangent_tol * max(1, |v|) = {tangent_tol * scale:.3g} "
+                f"exceeds tangent_tol * max(1, |v|) = {allowed:.3g} "
                 "(pass project_velocity=True to project it)"
             )
         v0 = system.project_velocity(x0, v0)
@@ -367,7 +369,7 @@ def start_states(
     chain.check_generic()
     residual = system.tangency_residual(X0, V0)
     ok = (chain.closure_residual(H) <= 1e-9) & np.isfinite(energy)
-    ok &= residual <= tangent_tol * np.maximum(1.0, np.linalg.norm(V0, axis=1))
+    ok &= residual <= system.tangency_allowance(V0, tangent_tol)
     for k in np.nonzero(~ok)[0]:
         try:
             _, X0[k], V0[k], _ = start_state(chain, H[k], W[k], t_final, tangent_tol, project_velocity)

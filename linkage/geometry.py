@@ -116,14 +116,15 @@ def _tangent_vectors(chain: Chain, x0: NDArray, values: ArrayLike, name: str,
     if w.ndim not in (1, 2) or w.shape[-1] != chain.n - 1 or w.size == 0:
         raise ValueError(f"{name} must have shape (n - 1,) = ({chain.n - 1},) or (k, {chain.n - 1}), got {w.shape}")
     rows = np.atleast_2d(chain.to_point(w)).astype(float)
-    residual = HingeConstraints(chain).tangency_residual(np.broadcast_to(x0, rows.shape), rows)
-    scale = np.maximum(1.0, np.linalg.norm(rows, axis=1))
-    bad = ~(residual <= tangent_tol * scale)
+    constraints = HingeConstraints(chain)
+    residual = constraints.tangency_residual(np.broadcast_to(x0, rows.shape), rows)
+    allowed = constraints.tangency_allowance(rows, tangent_tol)
+    bad = ~(residual <= allowed)
     if np.any(bad):
         k = int(np.argmax(bad))
         raise ValueError(f"{name}{'' if w.ndim == 1 else f'[{k}]'} is not tangent to the configuration space: "
                          f"max_k l_k |(G w)_k| = {residual[k]:.3g} exceeds tangent_tol * max(1, |w|) = "
-                         f"{tangent_tol * scale[k]:.3g}")
+                         f"{allowed[k]:.3g}")
     return rows, w.ndim == 1
 
 
@@ -328,7 +329,7 @@ def tangent_basis(chain: Chain, hinges: ArrayLike) -> NDArray:
     generic lengths (``ValueError`` at a singular configuration, where ``G``
     loses rank).
     """
-    x = chain.to_point(chain.check_configuration(hinges, tol=1e-9)).astype(float)
+    x = chain.to_point(chain.check_one_configuration(hinges, "hinges")).astype(float)
     _, s, Vt = np.linalg.svd(HingeConstraints(chain).jacobian(x))
     rank = int(np.sum(s > s[0] * 1e-12))
     if rank < chain.n:
@@ -396,10 +397,10 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
     for name in ("fp_type", "dense", "t_eval", "carry"):
         if name in options:
             raise TypeError(f"log does not take {name}= (it shoots in float64 with dense output)")
-    h0 = chain.check_configuration(hinges0, tol=1e-9)
+    h0 = chain.check_one_configuration(hinges0, "hinges0")
     x0 = chain.to_point(h0).astype(float)
     constraints = HingeConstraints(chain)
-    x1 = constraints.project_position(chain.to_point(chain.check_configuration(hinges1, tol=1e-9)).astype(float))
+    x1 = constraints.project_position(chain.to_point(chain.check_one_configuration(hinges1, "hinges1")).astype(float))
     basis = chain.to_point(tangent_basis(chain, h0))  # (n-2, N), K-orthonormal
     K = chain.ambient_metric
     guesses = []

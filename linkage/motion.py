@@ -12,7 +12,7 @@ core or a Dask cluster; :mod:`linkage.ensemble`) and :func:`lyapunov_exponent`
 from __future__ import annotations
 
 import inspect
-from functools import cached_property
+from functools import cache, cached_property
 from typing import Any
 
 import numpy as np
@@ -156,12 +156,19 @@ def _default_velocity(chain: Chain, kwargs: dict) -> ConstrainedVelocity | None:
 _TOLERANCE_ALIASES = ("rtol", "atol", "tolerance")
 
 
-def _check_options(method: str, options: dict[str, Any]) -> None:
-    """``TypeError`` naming an option that the method's solver does not take, with the options it does take."""
+@cache
+def _method_options(method: str) -> tuple[str, ...]:
+    """The keyword options of the method's solver that ``free_motion`` passes on (read once: ``inspect`` costs tens
+    of microseconds, and a short call's fixed cost is counted)."""
     solver = solve_constrained if method == "hinges" else solve_chart_exp_ode
     parameters = inspect.signature(solver).parameters
-    taken = sorted(name for name, p in parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY
-                   and name not in ("metric", "progress", "carry", "project_velocity", "tangent_tol"))
+    return tuple(sorted(name for name, p in parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY
+                        and name not in ("metric", "progress", "carry", "project_velocity", "tangent_tol")))
+
+
+def _check_options(method: str, options: dict[str, Any]) -> None:
+    """``TypeError`` naming an option that the method's solver does not take, with the options it does take."""
+    taken = _method_options(method)
     for name in options:
         if name not in taken:
             hint = "; the tolerance is tol=" if name in _TOLERANCE_ALIASES else ""

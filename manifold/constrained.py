@@ -52,10 +52,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .artefacts import ArtefactStore
+from .budget import DEFAULT_BUDGET, Budget, spending, spent_message
 from .carried import CarriedTerm, carried_violation, slot_ranges
 from .expression_linalg import ldl_solve
-from .budget import DEFAULT_BUDGET, Budget, spending, spent_message
-from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible
+from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible, settled
 from .metric import InducedMetric
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
@@ -884,8 +884,7 @@ def solve_constrained(
                 x, v = xs[0], vs[0]
                 project_seconds += time.perf_counter() - p0
         pressed_at_all = pressed()  # also where another failure ended the run: a Ctrl-C is never swallowed
-    if pressed_at_all and status is not SolveStatus.INTERRUPTED:
-        status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {float(t)} ({message})"
+    status, message = settled(pressed_at_all, status, message, t)
     sol.final_state = (None, x, v)
     sol.status, sol.message = status, message
     sol.stats = SolverStats(sol.n_steps, 0, 0, compile_seconds, project_seconds, time.perf_counter() - wall0)

@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .compiled import compiled
 from .budget import DEFAULT_BUDGET, Budget, spending, spent_message
-from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible
+from .compiled import compiled
+from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible, settled
 from .metric import InducedMetric
 from .precision import as_fp, resolve_fp_type, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
@@ -160,8 +160,8 @@ def solve_chart_exp_ode(
     elif tol is not None:
         raise ValueError("give tol to the stepper (e.g. TaylorStepper(tol=...)), not beside it")
     with reporting(report):  # the start compiles the transfer and quality functions
-        sol, i, a, c, q_event, t_end, grid = _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching,
-                                                    project_velocity, tangent_tol, t_eval, chart)
+        sol, i, a, c, q_event, t_end, grid, resting = _start(metric, p0, v0, t_final, fp_type, stepper, q_out,
+                                                             switching, project_velocity, tangent_tol, t_eval, chart)
     switch_seconds = time.perf_counter() - wall0
     atlas, num, k = metric.atlas, sol.chart_numerics, metric.atlas.dim
     energy_tol = stepper.relative_tolerance(fp_type)
@@ -179,10 +179,9 @@ def solve_chart_exp_ode(
         carried = np.zeros(0, dtype=a.dtype)  # what a stepper carries after (a, c): ambient, the same in every chart
         if switching and float(atlas.charts[i].quality(a.astype(float))) < q_event:
             i, a, c = _switch(sol, i, a, c, t, q_event)  # its event would never fire: it starts past it
-        p_start, v_start, _ = num[i].point_velocity_energy(a[:, None], c[:, None])
         # a stepper that carries terms (a Jacobi field moves even at rest) integrates as usual
         carrying = isinstance(stepper, TaylorStepper) and stepper.velocity is not None and bool(stepper.velocity.carry)
-        rest = at_rest(p_start[0], v_start[0], t_end, fp_type) and not carrying
+        rest = resting and not carrying
         if rest:
             # the geodesic is the start to the working precision; a stepper would see no scale of time at all
             # (Sundman's time ran to |tau| = 1e30 without moving, and raised)
@@ -234,8 +233,7 @@ def solve_chart_exp_ode(
                 break
             switch_seconds += time.perf_counter() - s0
         pressed_at_all = pressed()  # also where another failure ended the run: a Ctrl-C is never swallowed
-    if pressed_at_all and status is not SolveStatus.INTERRUPTED:
-        status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t} ({message or 'reached t_final'})"
+    status, message = settled(pressed_at_all, status, message, t)
     sol.final_state = (i, a, c)
     sol.status, sol.message = status, message or "reached t_final"
     sol.stats = SolverStats(sol.n_steps, sol.n_switches, n_wraps, compile_seconds, switch_seconds,
@@ -251,7 +249,7 @@ def solve_chart_exp_ode(
 
 def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_velocity, tangent_tol, t_eval, chart):
     """Validate the inputs; return the empty solution, the start state ``(i, a, c)``, ``q_out`` for the events,
-    ``t_final`` as a float and the sorted output grid (or ``None``).
+    ``t_final`` as a float, the sorted output grid (or ``None``) and whether the start is :func:`at_rest`.
 
     ``q_out`` comes back as the value given to the events: below any quality
     (-2) when ``switching`` is off.
@@ -309,7 +307,7 @@ def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_
         raise ValueError(f"v0 gives a non-finite kinetic energy {float(E0[0])} (|v0| = {np.max(np.abs(v0)):.3g})")
     sol.energy_times.append(fp_type(0.0))
     sol.energies.append(E0[0])
-    return sol, i, a, c, q_out, t_final, grid
+    return sol, i, a, c, q_out, t_final, grid, at_rest(p_start[0], v_tan[0], t_final, fp_type)
 
 
 def _switch(sol: GeodesicSolution, i: int, a: NDArray, c: NDArray, t: Any, q_out: float) -> tuple:

@@ -25,7 +25,9 @@ from typing import Any
 
 import heyoka as hy
 
-__all__ = ["BUDGET", "CHUNK_SECONDS", "INTERRUPTED", "SolveInterrupted", "interruptible", "propagate_until"]
+from .solution import SolveStatus
+
+__all__ = ["BUDGET", "CHUNK_SECONDS", "INTERRUPTED", "SolveInterrupted", "interruptible", "propagate_until", "settled"]
 
 #: Wall time a chunk of steps is sized to take: how long a Ctrl-C waits at most, about.
 CHUNK_SECONDS = 0.1
@@ -80,6 +82,14 @@ def interruptible() -> Iterator[Callable[[], bool]]:
             _STATE["depth"] -= 1
             if _STATE["depth"] == 0:
                 signal.signal(signal.SIGINT, _STATE["previous"])
+
+
+def settled(pressed: bool, status: SolveStatus, message: str, t: Any) -> tuple[SolveStatus, str]:
+    """A solve's ``(status, message)`` at its end: :attr:`~manifold.solution.SolveStatus.INTERRUPTED` if Ctrl-C was
+    pressed at all during it (``pressed``), even where another failure ended the run, whose message is kept."""
+    if not pressed or status is SolveStatus.INTERRUPTED:
+        return status, message
+    return SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {float(t)} ({message or 'reached t_final'})"
 
 
 def propagate_until(ta: Any, t_limit: Any, *, callback: Callable[[Any], bool] | None = None,

@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, verdict
-from .interrupt import INTERRUPTED, SolveInterrupted, interruptible, propagate_until
+from .interrupt import INTERRUPTED, SolveInterrupted, interruptible, propagate_until, settled
 from .solution import SolveStatus, energy_violation
 from .steppers import MAX_TOLERANCE, taylor_relative_tolerance
 from .validation import check_bool, check_positive_int, check_real, real_array
@@ -257,8 +257,7 @@ def lyapunov_spectrum(
     dev = np.abs(np.array(energies) - E0) / E0
     status, message = verdict(energy_violation(dev, energy_times, n_steps, eps, "ambient coordinates"), drift,
                               n_steps, eps, t, failure)
-    if pressed_at_all and status is not SolveStatus.INTERRUPTED:
-        status, message = SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t} ({message})"
+    status, message = settled(pressed_at_all, status, message, t)
     result = LyapunovResult(history[-1] if history else np.full(k, np.nan), np.array(times),
                             np.array(history).reshape(-1, k), deviations, interval, speed, n_steps,
                             float(np.max(dev, initial=0.0)), status, message)

@@ -26,8 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
-from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
 from .budget import allowance, dense_bytes_per_step, spend
+from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
 from .interrupt import propagate_until
 from .precision import as_fp, is_double, unit_roundoff
 from .progress import step_callback
@@ -189,13 +189,11 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     outcome, n_steps, stop = propagate_until(ta, t_final, callback=callback, write_tc=dense,
                                              max_steps=allowance(per_step))
     spend(n_steps, per_step)
-    y_end, t_end = np.array(ta.state), ta.time
-    event: int | None
-    failure: str | None
-    if stop is not None:
-        event, failure = None, stop
-    else:
-        event, failure = (None, None) if outcome == hy.taylor_outcome.time_limit else terminal_event(outcome, n_events)
+    y_end = np.array(ta.state)
+    event: int | None = None
+    failure: str | None = stop  # Ctrl-C or the budget stopped it, else heyoka's outcome says
+    if stop is None and outcome != hy.taylor_outcome.time_limit:
+        event, failure = terminal_event(outcome, n_events)
     out: DenseOutput | None = None
     if dense and n_steps > 0:
         out = TaylorDense(np.array(step_times), np.array(tcs), fp_type)
@@ -203,8 +201,8 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
         states = np.concatenate([out.tcs[1:, :, 0], y_end[None, :]])  # a step's order-0 term is its start
     else:
         out = PointDense(y_end) if dense else None
-        times, states = np.array([t_end]), y_end[None, :]
-    return Advance(t_end, y_end, n_steps, event, times, states, out, failure)
+        times, states = np.array([ta.time]), y_end[None, :]
+    return Advance(ta.time, y_end, n_steps, event, times, states, out, failure)
 
 
 def terminal_event(outcome: Any, n_events: int) -> tuple[int | None, str | None]:

@@ -36,8 +36,8 @@ import heyoka as hy
 import numpy as np
 from numpy.typing import NDArray
 
-from .compiled import CompiledFamily
 from .budget import allowance, dense_bytes_per_step, spend
+from .compiled import CompiledFamily
 from .interrupt import propagate_until
 from .precision import as_fp, unit_roundoff
 from .progress import step_callback
