@@ -14,20 +14,24 @@ known without any chart: ``x'' = K^{-1} G^T lambda`` with
 
 .. math::
 
-    a' = g^{-1} J^T W V, \qquad V' = M^{-1} f(M z(a) + m, M J a') - \gamma (V - J a'),
+    J a' = V, \qquad V' = M^{-1} f(M z(a) + m, M J a') - \gamma (V - J a'),
 
-(``p = M z + m`` the chart's map, :meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`).
+(``p = M z + m`` the chart's map, :meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`),
+``a'`` read from ``V`` by forward substitution where ``J`` is block triangular, as an iterated suspension's
+is: ``O(n)`` nodes instead of the normal equations' ``O(n^3)``
+(:meth:`~manifold.geodesic_system.SymbolicPieces.velocity_coefficients`, ``docs/math.md`` §7b).
 Only the Jacobian ``J`` is needed: 307 full recursions at n = 4 with the switch
 events, against 511 in ``t`` (float64; 1,850 against 2,616 at n = 8; in Sundman's
 time 323.5 against 531.5 and 1,892.5 against 2,674.5).  The point
 stays on the manifold by construction (it is the chart's), so no constraint
 stabilisation is needed.  ``V`` drifts off the tangent space by rounding;
-``a'`` and ``f``'s velocity ``J a'`` ignore that drift ``V - J a'`` (a K-orthogonal
-projection), and each segment's end removes it (its state is read back as
-``c = g^{-1} J^T W V``).  Within a segment, though, the drift turns into tangent
-velocity as the tangent space turns (planted at 1e-6, it changed the energy by
-6.6e-7 over t = 3), and over long runs the energy error grew like ``t^0.6..0.9``
-instead of ``sqrt(t)``; the last term damps it at the rate ``gamma`` of
+``f``'s velocity is ``J a'``, not ``V``, and each segment's end removes the drift
+``V - J a'`` (its state is read back as ``c = g^{-1} J^T W V``, K-orthogonally).
+Within a segment, though, the drift turns into tangent velocity as the tangent
+space turns (planted at 1e-6, it changed the energy by 6.6e-7 over t = 3), and the
+forward substitution, an oblique projection, lets some of it into ``a'``; over
+long runs the energy error grew like ``t^0.6..0.9`` instead of ``sqrt(t)``
+undamped.  The last term damps the drift at the rate ``gamma`` of
 :func:`~manifold.constrained.damping_rate` (the hinge method's Baumgarte rate,
 scale-free), and vanishes on the exact solution.
 

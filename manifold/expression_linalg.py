@@ -94,3 +94,40 @@ def _minus_sum(first: "hy.expression | None", terms: list[hy.expression]) -> hy.
         return first
     total = terms[0] if len(terms) == 1 else hy.sum(terms)
     return -total if first is None else first - total
+
+
+def is_structural_zero(x: Any) -> bool:
+    """Whether a matrix entry is known to vanish: a Python zero, ``None``, or heyoka's constant 0."""
+    if x is None:
+        return True
+    if isinstance(x, (int, float)):
+        return x == 0
+    return isinstance(x, hy.expression) and x == hy.expression(0.0)
+
+
+def block_triangular_order(A: SparseMatrix, block: int) -> list[tuple[int, tuple[int, ...]]] | None:
+    """An elimination order that makes the ``N x k`` matrix ``A`` block lower triangular, or ``None``.
+
+    The rows come in blocks of ``block`` (the coordinates of one point of ``R^block``).  Column ``i`` is
+    *isolated* by a row block whose nonzero columns, among those not yet eliminated, are ``i`` alone; the
+    order lists each column with every block that isolates it when it is eliminated, so that a
+    forward substitution reads ``x_i`` from those rows once the earlier columns are known.  ``None``
+    when at some stage no block isolates a column (no such order: solve the normal equations instead).
+    Blocks never used (their columns were all eliminated before them) are left out.
+    """
+    k = len(A[0]) if len(A) else 0
+    blocks = [range(b, b + block) for b in range(0, len(A), block)]
+    support = [{i for r in rows for i in range(k) if not is_structural_zero(A[r][i])} for rows in blocks]
+    remaining, unused = set(range(k)), set(range(len(blocks)))
+    order: list[tuple[int, tuple[int, ...]]] = []
+    while remaining:
+        isolating = {b: support[b] & remaining for b in unused if len(support[b] & remaining) == 1}
+        if not isolating:
+            return None
+        column = min(next(iter(cols)) for cols in isolating.values())
+        used = sorted(b for b, cols in isolating.items() if cols == {column})
+        order.append((column, tuple(r for b in used for r in blocks[b])))
+        remaining.discard(column)
+        unused.difference_update(used)
+    return order
+

@@ -195,9 +195,11 @@ def _planted_drift_run(rate: float, dt: float, drift: float) -> tuple[float, flo
 @pytest.mark.parametrize("rate", [0.0, 1.0, 10.0])
 def test_the_normal_drift_of_the_velocity_decays_at_the_damping_rate_both_ways(rate, dt):
     """``V' = ... - gamma (V - J a')``: a drift ``n`` off the tangent space decays like ``exp(-|gamma t|)`` forward and
-    backward (the rate's sign follows the direction); undamped it keeps its size (measured: to 4e-10 of it)."""
+    backward (the rate's sign follows the direction).  ``a'`` reads ``V`` by forward substitution, an oblique
+    projection, which lets a little of the drift into ``a'`` and so into ``V'``: undamped the drift changes by 2-3 %
+    over ``|t| = 0.5`` (measured; the K-orthogonal ``g^-1 J^T W V`` kept it to 4e-10), a rate far below the damping's."""
     drift, expected, _ = _planted_drift_run(rate, dt, 1e-6)
-    assert drift / 1e-6 == pytest.approx(expected, rel=1e-3)
+    assert drift / 1e-6 == pytest.approx(expected, rel=0.05)
     if rate > 0:
         assert expected < 0.8
 
