@@ -259,7 +259,7 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
 
 def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0: ArrayLike, derivative0: ArrayLike,
                  T: float, t_eval: ArrayLike | None = None, *, method: str = "hinges", tangent_tol: float = 1e-9,
-                 **options: Any) -> JacobiFieldMotion:
+                 checked: bool = True, **options: Any) -> JacobiFieldMotion:
     """The Jacobi field along the geodesic from ``(hinges0, velocity0)`` with ``J(0) = field0``, ``D_t J(0) = derivative0``.
 
     The linearised geodesic flow (:class:`manifold.jacobi.JacobiField`): ``J``
@@ -272,6 +272,9 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
         As in :func:`parallel_transport`.
     field0, derivative0
         Complex tangent vectors at ``hinges0``, one shape: ``(n-1,)`` or ``(k, n-1)`` for ``k`` fields at once.
+    checked
+        Check the fields' invariants at every step (:class:`manifold.jacobi.JacobiField`); off for fields that
+        grow by orders of magnitude (:func:`linkage.sensitivity.sensitivity`).
 
     Returns
     -------
@@ -288,7 +291,7 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
             raise ValueError(f"field0 and derivative0 must have one shape, got {np.shape(field0)} and "
                              f"{np.shape(derivative0)}")
         single.append(one)
-        return JacobiField(J, U)
+        return JacobiField(J, U, checked)
 
     carried, times = _solve(chain, hinges0, velocity0, T, term, t_eval, tangent_tol, method, options)
     return JacobiFieldMotion(chain, carried, times, single[0])

@@ -38,7 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .carried import CarriedTerm
 from .precision import as_fp
-from .validation import real_array
+from .validation import check_bool, real_array
 
 if TYPE_CHECKING:
     from .constrained import ConstrainedGeometry, ConstrainedPieces
@@ -55,11 +55,17 @@ class JacobiField(CarriedTerm):
         ``J(0)`` and ``D_t J(0)``, shape ``(N,)`` or ``(k, N)`` each (the same);
         tangent at the start (their normal parts are projected away in the
         working precision).
+    checked
+        Whether the solve checks the invariants ``<D_t J, v>`` and ``<D_t J_a, J_b> - <J_a, D_t J_b>`` (default).
+        Off for fields that measure a strong growth (:func:`linkage.sensitivity.sensitivity`): the invariants
+        cancel products of fields grown ``A``-fold, and lose digits with ``A`` where the fields themselves keep
+        their relative accuracy.
     """
 
     name = "Jacobi field"
 
-    def __init__(self, fields: ArrayLike, derivatives: ArrayLike) -> None:
+    def __init__(self, fields: ArrayLike, derivatives: ArrayLike, checked: bool = True) -> None:
+        self.checked = check_bool("checked", checked)
         j, w = real_array("fields", fields), real_array("derivatives", derivatives)
         if j.ndim not in (1, 2) or j.size == 0 or j.shape != w.shape:
             raise ValueError(f"fields and derivatives must have one shape, (N,) or (k, N) with k >= 1, got {j.shape} "
@@ -105,6 +111,8 @@ class JacobiField(CarriedTerm):
 
     def invariants(self, geometry: ConstrainedGeometry, x: NDArray, v: NDArray,
                    y: NDArray) -> tuple[NDArray, NDArray]:
+        if not self.checked:
+            return np.zeros((len(y), 0)), np.zeros((len(y), 0))
         J, U = self._pairs(y, geometry.N)
         KU, KJ = U @ geometry.K, J @ geometry.K
         along = np.sum(KU * v[:, None, :], axis=-1)  # <U, v> = <D_t J, v> for a tangent v
