@@ -7,7 +7,11 @@ both ends of ``(n-2, n)``.
 
 from __future__ import annotations
 
+import os
+
+import heyoka as hy
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
@@ -26,6 +30,18 @@ settings.register_profile("stress", parent=settings.get_profile("default"), max_
 settings.load_profile("default")
 
 HALF_PI = np.pi / 2
+
+#: ``LINKAGE_TEST_SIMD_WIDTH=8 python -m pytest`` runs the suite as on a machine whose SIMD width heyoka reports as 8
+#: (AVX-512); the library reads the width at each call, and no test may assume one.
+SIMD_WIDTH_VARIABLE = "LINKAGE_TEST_SIMD_WIDTH"
+
+
+@pytest.fixture(autouse=True)
+def forced_simd_width(monkeypatch):
+    """heyoka's recommended SIMD width as :data:`SIMD_WIDTH_VARIABLE` says, if set."""
+    width = os.environ.get(SIMD_WIDTH_VARIABLE)
+    if width:
+        monkeypatch.setattr(hy, "recommended_simd_size", lambda *args, **kwargs: int(width))
 
 
 @st.composite
