@@ -74,6 +74,12 @@ STABILISATIONS = ("baumgarte", "projection", "none")
 UNROLL_MAX_DIM = 8
 #: A start farther than this from ``c = 0`` (``max_k |c_k|``) is refused rather than moved.
 START_CONSTRAINT_TOLERANCE = 1e-9
+#: A constraint residual below this many unit roundoffs is rounding (a rod's ``c_k`` sums several rounded terms: a
+#: correctly rounded configuration showed 5 of them), and the projection leaves the point alone.  Numerical trap:
+#: near a singular configuration (``L`` near ``n``) ``G`` loses rank, and projecting a rounding-level residual moved
+#: a float64 start by ``eps / sigma_min(G)``, 6.7e-13 at ``L = 4 - 1e-9``, and its velocity by 6e-9 with the turned
+#: tangent space.
+ROUNDING_RESIDUAL = 16
 
 
 class ConstrainedSystem(ABC):
@@ -586,8 +592,8 @@ class ConstrainedGeometry:
         return cf(args, pars=np.ascontiguousarray(np.repeat(self.pars[: cf.nparams, None], x.shape[0], axis=1))).T
 
     def project(self, x: NDArray, v: NDArray) -> tuple[NDArray, NDArray]:
-        """Rows ``(B, N)``: Gauss-Newton ``x -= K^{-1} G^T M^{-1} c(x)`` until ``max_k |c_k| <= 4 eps``, row by
-        row, then ``v -= K^{-1} G^T M^{-1} G v``.
+        """Rows ``(B, N)``: Gauss-Newton ``x -= K^{-1} G^T M^{-1} c(x)`` until ``max_k |c_k| <=``
+        :data:`ROUNDING_RESIDUAL` ``eps``, row by row, then ``v -= K^{-1} G^T M^{-1} G v``.
 
         A row that has converged is left alone while the others iterate, and
         the compiled function evaluates columns independently, so each row
@@ -598,7 +604,7 @@ class ConstrainedGeometry:
         max_steps = 3 + int(np.ceil(-np.log2(self.eps) / 50))
         for _ in range(max_steps):
             c, _, _, _ = self(x[active], v[active])
-            moving = ~(np.max(np.abs(c.astype(float)), axis=1) <= 4 * self.eps)
+            moving = ~(np.max(np.abs(c.astype(float)), axis=1) <= ROUNDING_RESIDUAL * self.eps)
             active, c = active[moving], c[moving]
             if not active.size:
                 break
