@@ -16,6 +16,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from .experiments import speed_ratio_at_equal_error  # noqa: E402
 
+#: Sections of ``benchmarks.md`` that other scripts write, kept when the study rewrites the page.
+PEERS_SECTION = "## Against the strongest peers"  # written by benchmarks.peers
+KEPT_SECTIONS = (PEERS_SECTION,)
+
 OURS = "atlas Taylor (ours)"
 
 
@@ -145,6 +149,33 @@ def _ratios_text(wp: dict) -> str:
     return ", ".join(f"{r:.1f}x at error {e:.0e}" for e, r in rs)
 
 
+def _section_span(lines: list[str], heading: str) -> tuple[int, int] | None:
+    """Line range of the section that starts at the line ``heading``, up to the next ``## `` heading."""
+    starts = [k for k, line in enumerate(lines) if line.rstrip("\n") == heading]
+    if not starts:
+        return None
+    end = next((k for k in range(starts[0] + 1, len(lines)) if lines[k].startswith("## ")), len(lines))
+    return starts[0], end
+
+
+def section(page: str, heading: str) -> str | None:
+    """The section of ``page`` under the line ``heading`` (heading included), or ``None``."""
+    lines = page.splitlines(keepends=True)
+    span = _section_span(lines, heading)
+    return None if span is None else "".join(lines[span[0] : span[1]])
+
+
+def replace_section(page: str, heading: str, body: str) -> str:
+    """``page`` with its section ``heading`` replaced by ``body`` (which starts with ``heading``), or ``body``
+    appended if there is none."""
+    lines = page.splitlines(keepends=True)
+    span = _section_span(lines, heading)
+    if span is None:
+        return page.rstrip("\n") + "\n\n" + body
+    rest = "".join(lines[span[1] :])
+    return "".join(lines[: span[0]]) + body + ("\n" + rest if rest else "")
+
+
 def write(results: dict, out: Path) -> Path:
     """Write figures, the JSON data and ``benchmarks.md`` into ``out``; return the page's path."""
     out.mkdir(parents=True, exist_ok=True)
@@ -208,5 +239,11 @@ def write(results: dict, out: Path) -> Path:
     if "conclusions" in results:
         parts += ["## Conclusions\n", results["conclusions"], ""]
     page = out / "benchmarks.md"
-    page.write_text("\n".join(parts))
+    text = "\n".join(parts)
+    if page.is_file():  # sections other scripts write (benchmarks.peers) are kept
+        for heading in KEPT_SECTIONS:
+            kept = section(page.read_text(), heading)
+            if kept is not None:
+                text = replace_section(text, heading, kept)
+    page.write_text(text)
     return page
