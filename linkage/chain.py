@@ -28,6 +28,7 @@ atlas), and :meth:`Chain.diagonal_space` parameterises it by the diagonals ``|p_
 from __future__ import annotations
 
 import numbers
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -59,6 +60,11 @@ class ConfigurationError(ValueError):
 #: methods'); a tiny density beside the hinge masses is harmless.  Scaling every mass by one factor changes no
 #: geodesic, so a model can always be brought into it.
 MASS_RANGE = (1e-100, 1e100)
+
+
+def _read_only(a: NDArray) -> NDArray:
+    a.flags.writeable = False
+    return a
 
 
 def _positive_vector(name: str, value: ArrayLike | float, size: int, allow_zero: bool) -> NDArray:
@@ -145,8 +151,12 @@ class Chain:
         self.unit_rods = bool(np.all(self.lengths == 1.0))
         self.hinge_masses = _positive_vector("hinge_masses", hinge_masses, self.n - 1, allow_zero=False)
         self.rod_densities = _positive_vector("rod_densities", rod_densities, self.n, allow_zero=True)
+        # read-only like the lengths: the mass matrices and the metric below are built once from them
+        self.hinge_masses.flags.writeable = self.rod_densities.flags.writeable = False
         self._topology: Topology | None = None
         self._atlases: dict = {}  # built once: an n = 8 atlas costs ~25 ms
+        self._refusal: tuple[str | None] | None = None  # (why there is no atlas, or None), decided once
+        self._metric: InducedMetric | None = None  # of the default atlas (its checks of K cost ~0.1 ms a call)
 
     def __repr__(self) -> str:
         if self.unit_rods:
@@ -211,18 +221,19 @@ class Chain:
                              self.check_one_configuration(hinges1, "hinges1"))
 
     # -- mass model ---------------------------------------------------------------
-    @property
+    @cached_property
     def mass_matrix(self) -> NDArray:
-        """Tridiagonal ``(n-1, n-1)`` matrix ``A`` of the hinge kinetic energy (module docstring)."""
+        """Tridiagonal ``(n-1, n-1)`` matrix ``A`` of the hinge kinetic energy (module docstring); read-only, built
+        once (a solve reads it several times: ~0.1 ms each time at n = 4)."""
         w = self.rod_densities * self.lengths  # rod masses lambda_k l_k
         A = np.diag(self.hinge_masses + (w[:-1] + w[1:]) / 3)
         off = w[1:-1] / 6
-        return A + np.diag(off, 1) + np.diag(off, -1)
+        return _read_only(A + np.diag(off, 1) + np.diag(off, -1))
 
-    @property
+    @cached_property
     def ambient_metric(self) -> NDArray:
-        """``K = A (x) I_2`` on interleaved real hinge vectors."""
-        return np.kron(self.mass_matrix, np.eye(2))
+        """``K = A (x) I_2`` on interleaved real hinge vectors; read-only, built once."""
+        return _read_only(np.kron(self.mass_matrix, np.eye(2)))
 
     def kinetic_energy(self, velocity: ArrayLike) -> NDArray:
         """``T = 1/2 v^T K v`` for complex hinge velocities ``(..., n-1)``."""
@@ -231,7 +242,12 @@ class Chain:
 
     # -- charts -------------------------------------------------------------------
     def _chart_refusal(self) -> str | None:
-        """Why this chain has no suspension atlas, or ``None`` if it has one."""
+        """Why this chain has no suspension atlas, or ``None`` if it has one (decided once: every solve asks)."""
+        if self._refusal is None:
+            self._refusal = (self._find_chart_refusal(),)
+        return self._refusal[0]
+
+    def _find_chart_refusal(self) -> str | None:
         hint = "; integrate its free motion with free_motion(..., method='hinges') instead (any generic lengths)"
         if self.unit_rods:
             try:
@@ -278,8 +294,12 @@ class Chain:
         return self._atlases[switch_threshold]
 
     def metric(self, atlas: SuspensionAtlas | None = None) -> InducedMetric:
-        """The kinetic-energy metric ``g = J^T K J`` on ``atlas`` (default: :meth:`atlas`)."""
-        return InducedMetric(self.atlas() if atlas is None else atlas, self.ambient_metric)
+        """The kinetic-energy metric ``g = J^T K J`` on ``atlas`` (default: :meth:`atlas`, whose metric is built once)."""
+        if atlas is not None:
+            return InducedMetric(atlas, self.ambient_metric)
+        if self._metric is None:
+            self._metric = InducedMetric(self.atlas(), self.ambient_metric)
+        return self._metric
 
     # -- configurations -----------------------------------------------------------
     def as_hinges(self, values: ArrayLike, what: str = "configuration") -> NDArray:

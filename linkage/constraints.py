@@ -32,6 +32,7 @@ projection of a position onto ``c = 0``.  Everything is float64.
 
 from __future__ import annotations
 
+import functools
 from fractions import Fraction
 
 import numpy as np
@@ -78,8 +79,12 @@ class HingeConstraints:
     def __init__(self, chain: Chain) -> None:
         self.n, self.L, self.lengths = chain.n, chain.L, chain.lengths
         self.ambient_dim = 2 * (self.n - 1)
-        self.K = chain.ambient_metric
-        self.K_inv = np.kron(np.linalg.inv(chain.mass_matrix), np.eye(2))
+        self.K, self._mass_matrix = chain.ambient_metric, chain.mass_matrix
+
+    @functools.cached_property
+    def K_inv(self) -> NDArray:
+        """``A^{-1} (x) I_2`` (built when first asked for: a start that needs no projection never does)."""
+        return np.kron(np.linalg.inv(self._mass_matrix), np.eye(2))
 
     def __repr__(self) -> str:
         return f"HingeConstraints(n={self.n}, L={self.L!r})"
@@ -378,6 +383,16 @@ def start_states(
     return system, X0, V0, t_final
 
 
+@functools.lru_cache(maxsize=256)
+def _chain_parameters(L: float, lengths: bytes) -> NDArray:
+    """:attr:`ChainSystem.parameters` of the base ``L`` and the float64 lengths' bytes (read-only; the rational
+    arithmetic cost ~0.1 ms a solve at n = 4)."""
+    inverse_squares = [1 / Fraction(float(l)) ** 2 for l in np.frombuffer(lengths, dtype=float)]
+    out = np.array([Fraction(L), *inverse_squares], dtype=object)
+    out.flags.writeable = False
+    return out
+
+
 class ChainSystem(ConstrainedSystem):
     """The chain's configuration space as a :class:`manifold.constrained.ConstrainedSystem`.
 
@@ -417,8 +432,7 @@ class ChainSystem(ConstrainedSystem):
         variable, and gives both the O(order^2) Taylor recursion of a quotient; a product with the parameter
         ``1 / l_k^2`` costs O(order).  At n = 4 that took 50 of the 135 products and quotients of each step.
         """
-        inverse_squares = [1 / Fraction(float(l)) ** 2 for l in self.chain.lengths]
-        return np.array([Fraction(float(self.chain.L)), *inverse_squares], dtype=object)
+        return _chain_parameters(float(self.chain.L), np.asarray(self.chain.lengths, dtype=float).tobytes())
 
     @property
     def length_scale(self) -> float:

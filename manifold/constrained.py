@@ -227,15 +227,23 @@ class ConstrainedSystem(ABC):
         return [q + alpha * (2.0 * gv + alpha * ck) for q, gv, ck in zip(curvature, Gv, c)]
 
 
+def _matrix_key(K: ArrayLike) -> tuple[int, bytes]:
+    """``(N, bytes)`` of a float64 ``N x N`` matrix: the key under which what a solve derives from ``K`` is cached
+    (a tuple of its entries cost 20 microseconds at N = 6, its bytes under one)."""
+    K = np.ascontiguousarray(K, dtype=float)
+    return K.shape[0], K.tobytes()
+
+
 def _exact_inverse(K: NDArray) -> list[list[Fraction]]:
     """``K^{-1}`` in exact rationals (Gauss-Jordan on the float64 entries taken exact), cached per ``K``."""
-    return _exact_inverse_of(K.shape[0], tuple(float(k) for k in K.ravel()))
+    return _exact_inverse_of(*_matrix_key(K))
 
 
 @functools.lru_cache(maxsize=256)
-def _exact_inverse_of(n: int, entries: tuple[float, ...]) -> list[list[Fraction]]:
+def _exact_inverse_of(n: int, data: bytes) -> list[list[Fraction]]:
     # rational arithmetic costs ~1 ms per entry at N = 14: solves reuse the result instead of redoing it
-    A = [[Fraction(entries[i * n + j]) for j in range(n)] + [Fraction(int(i == j)) for j in range(n)]
+    entries = np.frombuffer(data, dtype=float)
+    A = [[Fraction(float(entries[i * n + j])) for j in range(n)] + [Fraction(int(i == j)) for j in range(n)]
          for i in range(n)]
     for col in range(n):
         piv = max(range(col, n), key=lambda r: abs(A[r][col]))
@@ -278,11 +286,7 @@ class ConstrainedLayout:
     @classmethod
     def of(cls, system: ConstrainedSystem) -> "ConstrainedLayout":
         """The layout of ``system``: its parameter count and the nonzero patterns of ``K^{-1}`` (exact) and ``K``."""
-        K = np.asarray(system.metric_matrix, dtype=float)
-        Ki = _exact_inverse(K)
-        N = K.shape[0]
-        return cls(len(system.parameters), tuple((i, j) for i in range(N) for j in range(i + 1) if Ki[i][j] != 0),
-                   tuple((i, j) for i in range(N) for j in range(i + 1) if K[i, j] != 0))
+        return _layout_of(len(system.parameters), *_matrix_key(system.metric_matrix))
 
     def matrices(self, N: int) -> tuple[list[list[Expr | None]], list[list[Expr | None]]]:
         """Symmetric ``K^{-1}`` and ``K`` of ``heyoka.par`` entries (``None`` off the patterns)."""
@@ -297,14 +301,33 @@ class ConstrainedLayout:
         return out[0], out[1]
 
     def pack(self, system: ConstrainedSystem, alpha: float, fp_type: Any) -> NDArray:
-        """The parameter values in ``fp_type``: ``K^{-1}`` rounded once from its exact rational value."""
-        K = np.asarray(system.metric_matrix, dtype=float)
-        Ki = _exact_inverse(K)
-        values = [fp_type(alpha)] + [_fraction_to_fp(x if isinstance(x, Fraction) else Fraction(float(x)), fp_type)
-                                     for x in system.parameters]
-        values += [_fraction_to_fp(Ki[i][j], fp_type) for i, j in self.inverse_pattern]
-        values += [fp_type(float(K[i, j])) for i, j in self.metric_pattern]
-        return as_fp(np.array(values, dtype=object), fp_type)
+        """The parameter values in ``fp_type``: ``K^{-1}`` rounded once from its exact rational value (all but
+        ``alpha`` cached per system values and precision: the rational roundings cost ~0.2 ms a solve at n = 4)."""
+        out = _packed(self, tuple(system.parameters), *_matrix_key(system.metric_matrix), fp_type).copy()
+        out[0] = fp_type(alpha)
+        return out
+
+
+@functools.lru_cache(maxsize=256)
+def _layout_of(n_parameters: int, N: int, data: bytes) -> ConstrainedLayout:
+    K = np.frombuffer(data, dtype=float).reshape(N, N)
+    Ki = _exact_inverse_of(N, data)
+    return ConstrainedLayout(n_parameters, tuple((i, j) for i in range(N) for j in range(i + 1) if Ki[i][j] != 0),
+                             tuple((i, j) for i in range(N) for j in range(i + 1) if K[i, j] != 0))
+
+
+@functools.lru_cache(maxsize=256)
+def _packed(layout: ConstrainedLayout, parameters: tuple, N: int, data: bytes, fp_type: Any) -> NDArray:
+    """:meth:`ConstrainedLayout.pack` with ``alpha = 0`` (read-only: callers copy)."""
+    K = np.frombuffer(data, dtype=float).reshape(N, N)
+    Ki = _exact_inverse_of(N, data)
+    values = [fp_type(0.0)] + [_fraction_to_fp(x if isinstance(x, Fraction) else Fraction(float(x)), fp_type)
+                               for x in parameters]
+    values += [_fraction_to_fp(Ki[i][j], fp_type) for i, j in layout.inverse_pattern]
+    values += [fp_type(float(K[i, j])) for i, j in layout.metric_pattern]
+    out = as_fp(np.array(values, dtype=object), fp_type)
+    out.flags.writeable = False
+    return out
 
 
 class ConstrainedPieces:
@@ -576,6 +599,12 @@ class ConstrainedGeometry:
         m, N = self.m, self.N
         return out[:m].T, out[m : 2 * m].T, out[2 * m : 2 * m + N].T, out[-1]
 
+    def packed(self, alpha: Any) -> NDArray:
+        """The integrator's parameters (:meth:`ConstrainedLayout.pack`) with the Baumgarte rate ``alpha``."""
+        out = self.pars.copy()
+        out[0] = self.fp(alpha)
+        return out
+
     def inner(self, a: NDArray, b: NDArray) -> NDArray:
         """``a^T K b`` over the last axis, in the working precision."""
         return np.sum((a @ self.K) * b, axis=-1)
@@ -648,9 +677,14 @@ def speed_scale(system: ConstrainedSystem) -> float:
     With ``sqrt(2 E / tr K)``, the heavy masses' speed, hinge masses 1e-3 and 1e2 (n = 3) were damped 160x too
     slowly and drifted off ``c = 0`` by 3.3e-12 over T = 20 (unit masses: 9e-16); for equal masses the two agree.
     """
-    K = np.asarray(system.metric_matrix, dtype=float)
-    trace_inverse = sum(row[i] for i, row in enumerate(_exact_inverse(K)))  # cached: the layout's K^-1
-    return float(np.sqrt(float(trace_inverse))) / K.shape[0] / float(system.length_scale)
+    N, data = _matrix_key(system.metric_matrix)
+    return _root_trace_inverse(N, data) / N / float(system.length_scale)
+
+
+@functools.lru_cache(maxsize=256)
+def _root_trace_inverse(N: int, data: bytes) -> float:
+    """``sqrt(tr K^-1)`` from the exact inverse (the layout's, cached)."""
+    return float(np.sqrt(float(sum(row[i] for i, row in enumerate(_exact_inverse_of(N, data))))))
 
 
 def damping_rate(scale: float, rate: float, energy: Any, direction: float) -> Any:
@@ -857,7 +891,7 @@ def solve_constrained(
                                                                       compact_mode, carry) as ta, \
             interruptible() as pressed, spending(budget) as account:
         compile_seconds = time.perf_counter() - t_compile
-        pars = comp.layout.pack(system, alpha, fp_type)
+        pars = geo.packed(alpha)
         for end in ends:
             adv = taylor_advance(ta, t, np.concatenate([x, v, carried]), fp_type(end), pars,
                                  dense or grid is not None, fp_type)

@@ -1,0 +1,140 @@
+"""What a ``free_motion`` call costs around heyoka: ``python -m benchmarks.call_cost [--baseline DIR]``.
+
+For ``method="hinges"`` at n = 4 (and ``--n``), CPU time of this process, the fastest of
+``--rounds`` interleaved rounds (each a batch of calls, averaged):
+
+* the fixed cost of a call: ``free_motion`` to T = 1e-3 (one Taylor step), with and without dense output;
+* a T = 10 call (as a user calls it, dense output on; and with ``dense=False``) against heyoka's bare
+  ``propagate_until`` on the same compiled integrator from the same state with the same parameters:
+  the share of the call spent in heyoka;
+* the same at T = 200 (``dense=False``): the call's time over bare heyoka's.
+
+``--baseline DIR`` measures another checkout of the library (``DIR`` on ``PYTHONPATH``) in a
+subprocess, alternating with this one round by round, and prints both side by side: before and
+after a change, in one run.  The measurement uses only names both checkouts have.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+SHORT_T = 1e-3
+
+
+def start(n: int, seed: int = 0):
+    """A chain with ``L = n - 1.3`` and a unit-energy generic start (as ``benchmarks.study.experiments``)."""
+    from linkage import Chain
+
+    chain = Chain(n, n - 1.3)
+    atlas = chain.atlas()
+    rng = np.random.default_rng(seed)
+    a0 = np.append(rng.uniform(-1, 1, n - 3), 0.3)
+    p0 = atlas.get_point(0, a0)
+    v0 = atlas.charts[0].tangent_vector(a0, rng.normal(size=n - 2))
+    v0 = v0 / np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))
+    return chain, chain.from_point(p0), chain.from_point(v0)
+
+
+def bare(chain, h0, w0, T: float):
+    """``run()``: heyoka's ``propagate_until(T)`` on the hinge method's own integrator, state and parameters."""
+    from linkage.constraints import ChainSystem
+    from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
+
+    system = ChainSystem(chain)
+    comp = compiled_constrained(system)
+    xs, vs, _, alphas = ConstrainedGeometry(system, float).start(chain.to_point(h0)[None, :],
+                                                                 chain.to_point(w0)[None, :], T, 1.0)
+    y0 = np.concatenate([xs[0], vs[0]])
+    pars = comp.layout.pack(system, float(alphas[0]), float)
+
+    def run() -> None:
+        with comp.integrator(float, None, True, default_compact_mode(system, float)) as ta:
+            ta.state[:] = y0
+            ta.time = 0.0
+            ta.pars[:] = pars[: len(ta.pars)]
+            ta.propagate_until(T)
+
+    return run
+
+
+def measure(n: int, rounds: int) -> dict[str, float]:
+    """Seconds per call of each case, the fastest of ``rounds`` batches."""
+    from linkage.motion import free_motion
+
+    chain, h0, w0 = start(n)
+
+    def call(T: float, **kw):
+        return lambda: free_motion(chain, h0, w0, T, method="hinges", **kw)
+
+    cases = {"fixed, dense": (call(SHORT_T), 200), "fixed, no dense": (call(SHORT_T, dense=False), 200),
+             "T = 10, dense": (call(10.0), 20), "T = 10, no dense": (call(10.0, dense=False), 20),
+             "T = 10, bare heyoka": (bare(chain, h0, w0, 10.0), 20),
+             "T = 200, no dense": (call(200.0, dense=False), 2), "T = 200, bare heyoka": (bare(chain, h0, w0, 200.0), 2)}
+    best = {name: np.inf for name in cases}
+    for run, _ in cases.values():
+        run()  # compiles and caches outside the timing
+    for _ in range(rounds):
+        for name, (run, batch) in cases.items():
+            c0 = time.process_time()
+            for _ in range(batch):
+                run()
+            best[name] = min(best[name], (time.process_time() - c0) / batch)
+    return best
+
+
+def derived(m: dict[str, float]) -> dict[str, float]:
+    return {"share of a T = 10 call in heyoka (dense)": m["T = 10, bare heyoka"] / m["T = 10, dense"],
+            "share of a T = 10 call in heyoka (no dense)": m["T = 10, bare heyoka"] / m["T = 10, no dense"],
+            "T = 200 call / bare heyoka": m["T = 200, no dense"] / m["T = 200, bare heyoka"]}
+
+
+def side_by_side(n: int, rounds: int, baseline: Path) -> None:
+    """This checkout and ``baseline``, alternating subprocesses, each the fastest of its rounds."""
+    here = Path(__file__).resolve().parent.parent
+    best: dict[str, dict[str, float]] = {}
+    for _ in range(rounds):
+        for label, tree in (("before", baseline), ("after", here)):
+            env = {**os.environ, "PYTHONPATH": str(tree)}
+            out = subprocess.run([sys.executable, __file__, "--n", str(n), "--rounds", "3", "--json"], env=env, cwd="/",
+                                 check=True, capture_output=True, text=True).stdout
+            got = json.loads(out.splitlines()[-1])
+            best[label] = {k: min(v, best.get(label, {}).get(k, np.inf)) for k, v in got.items()}
+    print(f"n = {n}, hinges: before ({baseline}) and after ({here}), CPU time per call, fastest of {rounds} alternating "
+          f"runs of 3 rounds")
+    for k in best["after"]:
+        b, a = best["before"][k], best["after"][k]
+        print(f"  {k:26s} {1e3 * b:9.3f} ms  {1e3 * a:9.3f} ms  ({a / b:.2f}x)")
+    for k, a in derived(best["after"]).items():
+        print(f"  {k:44s} before {derived(best['before'])[k]:.2f}, after {a:.2f}")
+
+
+def report(n: int, m: dict[str, float]) -> None:
+    print(f"n = {n}, hinges, CPU time per call")
+    for k, v in m.items():
+        print(f"  {k:26s} {1e3 * v:9.3f} ms")
+    for k, v in derived(m).items():
+        print(f"  {k:44s} {v:.2f}")
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.call_cost", description=__doc__.split("\n")[0])
+    parser.add_argument("--n", type=int, nargs="+", default=[4])
+    parser.add_argument("--rounds", type=int, default=7)
+    parser.add_argument("--baseline", type=Path, default=None, help="another checkout, measured alternately")
+    parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)  # one n, machine-readable
+    args = parser.parse_args()
+    for n in args.n:
+        if args.json:
+            print(json.dumps(measure(n, args.rounds)))
+        elif args.baseline is not None:
+            side_by_side(n, args.rounds, args.baseline)
+        else:
+            report(n, measure(n, args.rounds))
