@@ -14,7 +14,8 @@ this machine (ratios are the numbers to compare; absolute times are noise):
 4. the hinge method in float64 at its default tolerance: error against a
    long-double chart reference over T = 20; relative energy error and its
    log-log growth slope over T = 1e4; rod-length error;
-5. compact mode on and off: cold compile and warm time per unit time;
+5. compact mode on and off, float64 and long double, n = 4..12: compile (CPU and wall) cold and from
+   heyoka's disk cache, and CPU time per Taylor step;
 6. constraint stabilisation: Baumgarte (rates 0.1, 1, 10), projection every
    10 time units, none -- wall time, rod-length drift and energy error over
    T = 1e4 at n = 4.
@@ -26,6 +27,7 @@ chart method in long double (an independent route).
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
 
 import heyoka as hy
@@ -163,28 +165,55 @@ def float64_accuracy(T_short: float = 20.0, T_long: float = 1e4) -> dict:
     return out
 
 
-def compact_modes(ns: list[int], T: float = 100.0) -> dict:
-    """Section 5: compact mode on/off, cold compile (disk cache off) and warm time per unit time."""
-    hy.llvm_state.set_diskcache_enabled(False)
+def compact_modes(ns: list[int], fp_types: tuple = (float, np.longdouble), T: float = 200.0, repeats: int = 3) -> dict:
+    """Section 5: the hinge integrator compact and unrolled, per n and precision.
+
+    Compiles go through a fresh heyoka disk cache (a temporary directory): "cold" is the first build (nothing
+    cached, heyoka's memory cache and ours cleared; CPU and wall seconds), "cached" the same build once both
+    memory caches are cleared again (what a new process pays once the code is on disk).  Then the CPU time of a
+    T = ``T`` run (``dense=False``, fastest of ``repeats``, the two modes interleaved) per Taylor step.
+    """
     out = {}
+    old_path, old_enabled = hy.llvm_state.get_diskcache_path(), hy.llvm_state.get_diskcache_enabled()
+
+    def build(comp, chain, h0, w0, compact, fp) -> tuple[float, float]:
+        comp.clear()
+        hy.llvm_state.clear_memcache()
+        c0, t0 = time.process_time(), time.perf_counter()
+        free_motion(chain, h0, w0, 0.01, method="hinges", compact_mode=compact, fp_type=fp)
+        return time.process_time() - c0, time.perf_counter() - t0
+
     try:
-        for n in ns:
-            chain, p0, v0 = generic_start(n)
-            h0, w0 = chain.from_point(p0), chain.from_point(v0)
-            for compact in (False, True):
-                compiled_constrained(ChainSystem(chain)).clear()
-                hy.llvm_state.clear_memcache()
-                t0 = time.perf_counter()
-                free_motion(chain, h0, w0, 0.01, method="hinges", compact_mode=compact)
-                cold = time.perf_counter() - t0
-                t0 = time.perf_counter()
-                m = free_motion(chain, h0, w0, T, method="hinges", compact_mode=compact, dense=False)
-                warm = (time.perf_counter() - t0) / T
-                out[(n, compact)] = {"compile": cold, "per_time": warm, "steps": m.n_steps}
-                print(f"  n = {n:2d} compact {str(compact):5s}: cold compile {cold:5.2f} s, "
-                      f"{1e3 * warm:.2f} ms per unit time ({m.n_steps} steps)")
+        with tempfile.TemporaryDirectory() as cache:
+            hy.llvm_state.set_diskcache_path(cache)
+            hy.llvm_state.set_diskcache_enabled(True)
+            for fp in fp_types:
+                for n in ns:
+                    chain, p0, v0 = generic_start(n)
+                    h0, w0 = chain.from_point(p0), chain.from_point(v0)
+                    comp = compiled_constrained(ChainSystem(chain))
+                    for compact in (False, True):
+                        cold, cold_wall = build(comp, chain, h0, w0, compact, fp)
+                        cached, _ = build(comp, chain, h0, w0, compact, fp)
+                        out[(fp, n, compact)] = {"compile_cpu": cold, "compile_wall": cold_wall, "cached_cpu": cached,
+                                                 "run": np.inf}
+                    for _ in range(repeats):
+                        for compact in (False, True):
+                            c0 = time.process_time()
+                            m = free_motion(chain, h0, w0, T, method="hinges", compact_mode=compact, dense=False,
+                                            fp_type=fp)
+                            row = out[(fp, n, compact)]
+                            row["run"], row["steps"] = min(row["run"], time.process_time() - c0), m.n_steps
+                    un, co = out[(fp, n, False)], out[(fp, n, True)]
+                    print(f"  {np.dtype(fp).name:10s} n = {n:2d}: compile CPU unrolled {un['compile_cpu']:6.2f} s cold "
+                          f"(wall {un['compile_wall']:6.2f} s), {un['cached_cpu']:5.2f} s cached; compact "
+                          f"{co['compile_cpu']:5.2f} s cold, {co['cached_cpu']:5.2f} s cached; T = {T:g}: unrolled "
+                          f"{1e3 * un['run']:7.2f} ms ({1e6 * un['run'] / un['steps']:5.1f} us/step), compact "
+                          f"{1e3 * co['run']:7.2f} ms ({1e6 * co['run'] / co['steps']:5.1f} us/step), "
+                          f"compact / unrolled {co['run'] / un['run']:.2f}", flush=True)
     finally:
-        hy.llvm_state.set_diskcache_enabled(True)
+        hy.llvm_state.set_diskcache_path(old_path)
+        hy.llvm_state.set_diskcache_enabled(old_enabled)
     return out
 
 
@@ -226,7 +255,7 @@ def main(quick: bool = False, sections: str = "123456") -> dict:
         res["accuracy"] = float64_accuracy(T_long=1e3 if quick else 1e4)
     if "5" in sections:
         print("5. compact mode")
-        res["compact"] = compact_modes([4] if quick else [4, 8])
+        res["compact"] = compact_modes([4] if quick else [4, 6, 8, 10, 12])
     if "6" in sections:
         print(f"6. stabilisation, n = 4, T = {1e3 if quick else 1e4:g}")
         res["stabilisation"] = stabilisations(1e3 if quick else 1e4)

@@ -797,11 +797,11 @@ def solve_constrained(
         Time between projections for ``"projection"``, ``> 0``.
     compact_mode
         heyoka's compact mode; ``None`` (default) chooses by measurement
-        (``benchmarks/method_speed.py``, section 5): unrolled code for float64
-        and long double up to ``N = UNROLL_MAX_DIM`` (a chain of 5 rods), where
-        it steps 2-6x faster and its cold compile (tens of seconds, paid once:
-        heyoka caches it on disk) is tolerable; compact beyond (an unrolled
-        n = 8 chain took 104 s to compile for a 2.2x faster step) and for
+        (``benchmarks/method_speed.py``, section 5; docs/methods.md, "Compile options"): unrolled code for
+        float64 and long double up to ``N = UNROLL_MAX_DIM`` (a chain of 5 rods), where it steps 1.5-2x
+        faster and its cold compile (2-3 s of CPU at n = 4 in float64, 12-13 s in long double; paid once:
+        heyoka caches it on disk, and loads it from there in 0.05 s) is tolerable; compact beyond (an unrolled
+        n = 8 chain took 9-10 s of CPU to compile cold for a 1.7-2.2x faster step) and for
         real128 and :class:`~manifold.precision.MultiPrecision`, whose
         software arithmetic dominates the step (unrolled code at 150 bits
         exhausted memory), and with terms carried (``carry``; a Jacobi field
