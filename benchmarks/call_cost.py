@@ -7,7 +7,8 @@ For ``method="hinges"`` at n = 4 (and ``--n``), CPU time of this process, the fa
 * a T = 10 call (as a user calls it, dense output on; and with ``dense=False``) against heyoka's bare
   ``propagate_until`` on the same compiled integrator from the same state with the same parameters:
   the share of the call spent in heyoka;
-* the same at T = 200 (``dense=False``): the call's time over bare heyoka's.
+* the same at T = 200 (``dense=False``): the call's time over bare heyoka's;
+* the bytes of dense output per Taylor step (T = 10).
 
 ``--baseline DIR`` measures another checkout of the library (``DIR`` on ``PYTHONPATH``) in a
 subprocess, alternating with this one round by round, and prints both side by side: before and
@@ -81,6 +82,8 @@ def measure(n: int, rounds: int) -> dict[str, float]:
     best = {name: np.inf for name in cases}
     for run, _ in cases.values():
         run()  # compiles and caches outside the timing
+    sol = free_motion(chain, h0, w0, 10.0, method="hinges").solution
+    best["dense bytes per step"] = sol.dense_nbytes / sol.n_steps  # not a time: reported as it is
     for _ in range(rounds):
         for name, (run, batch) in cases.items():
             c0 = time.process_time()
@@ -111,7 +114,10 @@ def side_by_side(n: int, rounds: int, baseline: Path) -> None:
           f"runs of 3 rounds")
     for k in best["after"]:
         b, a = best["before"][k], best["after"][k]
-        print(f"  {k:26s} {1e3 * b:9.3f} ms  {1e3 * a:9.3f} ms  ({a / b:.2f}x)")
+        if k == "dense bytes per step":
+            print(f"  {k:26s} {b:9.0f} B   {a:9.0f} B   ({a / b:.2f}x)")
+        else:
+            print(f"  {k:26s} {1e3 * b:9.3f} ms  {1e3 * a:9.3f} ms  ({a / b:.2f}x)")
     for k, a in derived(best["after"]).items():
         print(f"  {k:44s} before {derived(best['before'])[k]:.2f}, after {a:.2f}")
 
@@ -119,7 +125,7 @@ def side_by_side(n: int, rounds: int, baseline: Path) -> None:
 def report(n: int, m: dict[str, float]) -> None:
     print(f"n = {n}, hinges, CPU time per call")
     for k, v in m.items():
-        print(f"  {k:26s} {1e3 * v:9.3f} ms")
+        print(f"  {k:26s} {v:9.0f} B" if k == "dense bytes per step" else f"  {k:26s} {1e3 * v:9.3f} ms")
     for k, v in derived(m).items():
         print(f"  {k:44s} {v:.2f}")
 

@@ -82,12 +82,15 @@ def allowance(bytes_per_step: int) -> int | None:
     return max(left, 0)
 
 
-def dense_bytes_per_step(ta: Any) -> int:
+def dense_bytes_per_step(ta: Any, positions: int = 0) -> int:
     """Bytes one step of dense output keeps: the integrator's Taylor coefficients and the step's time (objects of
-    software floating types, real128 and MultiPrecision, counted at 64 bytes each: an estimate)."""
+    software floating types, real128 and MultiPrecision, counted at 64 bytes each: an estimate); with
+    ``positions``, those of :class:`manifold.solution.SecondOrderDense` (the first ``positions`` components'
+    coefficients and one more number each)."""
     tc = ta.tc
     item = tc.itemsize if tc.dtype != object else 64
-    return int(tc.size * item + item)
+    numbers = tc.size if not positions else positions * (tc.shape[1] + 1)
+    return int(numbers * item + item)
 
 
 def spend(steps: int, bytes_per_step: int) -> None:

@@ -149,6 +149,46 @@ class TaylorDense:
         return polynomial_values(self.tcs[steps], h[:, None])
 
 
+class SecondOrderDense:
+    """Taylor polynomials of every step of a system whose first ``N`` equations are ``x' = v`` (positions
+    ``x``, velocities ``v`` the next ``N`` state components): only the positions' polynomials are kept.
+
+    On such a system the velocity's Taylor coefficients are the derivative's, ``v_j = (j + 1) x_{j+1}``
+    for ``j < order``, so ``x_0 .. x_order`` and the velocity's last coefficient ``v_order`` hold both
+    polynomials: ``(order + 2) N`` numbers per step instead of :class:`TaylorDense`'s ``(order + 1) 2N``.
+    Positions come from the same coefficients as there (the same numbers); velocities from
+    ``sum_{j < order} (j + 1) x_{j+1} h^j + v_order h^order``, whose coefficients differ from the velocity's
+    own by the rounding of ``x_{j+1} = v_j / (j + 1)`` in the Taylor recursion (``v_0 = x_1`` exactly).
+    """
+
+    def __init__(self, times: NDArray, tcs: NDArray, top: NDArray, fp_type: Any) -> None:
+        self.times, self.tcs, self.top, self.fp_type = times, tcs, top, fp_type
+        self._sign = 1.0 if times[-1] >= times[0] else -1.0
+        self._starts = np.asarray(times[:-1], dtype=float) * self._sign
+        self._factors = as_fp(np.arange(1, tcs.shape[-1]), fp_type)  # (j + 1) for x_{j+1}, j = 0 .. order - 1
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held: the step times, the positions' coefficients and the velocities' last ones."""
+        return int(self.times.nbytes + self.tcs.nbytes + self.top.nbytes)
+
+    @property
+    def step_velocities(self) -> NDArray:
+        """The velocity at the start of every step, ``v_0 = x_1`` (exact)."""
+        return self.tcs[:, :, 1]
+
+    def __call__(self, ts: NDArray) -> NDArray:
+        s = np.searchsorted(self._starts, np.asarray(ts, dtype=float) * self._sign, side="right") - 1
+        s = np.clip(s, 0, len(self._starts) - 1)
+        return self.at(s, as_fp(ts, self.fp_type) - self.times[s])
+
+    def at(self, steps: NDArray, h: NDArray) -> NDArray:
+        """States ``(m, 2N)``, positions then velocities, at offsets ``h`` from the starts of the steps ``steps``."""
+        x = self.tcs[steps]
+        v = np.concatenate([x[..., 1:] * self._factors, self.top[steps][..., None]], axis=-1)
+        return np.concatenate([polynomial_values(x, h[:, None]), polynomial_values(v, h[:, None])], axis=-1)
+
+
 class PointDense:
     """The continuous output of a segment without steps (one that starts where it ends: a switch that lands
     on ``t_final``): its one state, at its one time."""

@@ -31,7 +31,7 @@ from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
 from .interrupt import propagate_until
 from .precision import as_fp, is_double, unit_roundoff
 from .progress import step_callback
-from .solution import CallableDense, DenseOutput, PointDense, TaylorDense
+from .solution import CallableDense, DenseOutput, PointDense, SecondOrderDense, TaylorDense
 from .validation import check_bool, check_index, check_real
 
 #: Largest accepted tolerance: looser runs are not geodesics (``tol = 1`` gave a 21 % energy error).
@@ -161,13 +161,18 @@ def taylor_relative_tolerance(tol: float | None, fp_type: Any) -> float:
     return 2 * unit_roundoff(fp_type) if tol is None else max(tol, 2 * unit_roundoff(fp_type))
 
 
-def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool, fp_type: Any) -> Advance:
+def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool, fp_type: Any,
+                   positions: int = 0) -> Advance:
     """Run the heyoka integrator ``ta`` from ``(t, y)`` to ``t_final`` or its first terminal event.
 
     Shared by every Taylor method (chart geodesics, constrained motion): sets
     state, time and parameters, resets the event cooldowns, propagates, and
     keeps each step's Taylor coefficients in a :class:`TaylorDense` when ``dense``.
+    With ``positions = N`` (a system whose whole state is ``(x, v)`` with ``x' = v``, ``N`` positions)
+    it keeps only the positions' and a :class:`~manifold.solution.SecondOrderDense`, half the bytes.
     """
+    if positions and len(y) != 2 * positions:
+        raise ValueError(f"positions = {positions} needs a state (x, v) of {2 * positions} components, got {len(y)}")
     ta.state[:] = y
     ta.time = t
     ta.pars[:] = pars[: len(ta.pars)]
@@ -175,17 +180,24 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     if n_events:
         ta.reset_cooldowns()
     progress = step_callback()  # None unless asked; it only reads the integrator: results are the same without it
-    step_times, tcs = [ta.time], []
+    step_times, tcs, tops = [ta.time], [], []
 
     def record(ta: Any) -> bool:
         tcs.append(ta.tc.copy())
         step_times.append(ta.time)
         return progress is None or progress(ta)
 
+    def record_positions(ta: Any) -> bool:
+        tc = ta.tc
+        tcs.append(tc[:positions].copy())
+        tops.append(tc[positions:, -1].copy())  # the whole state is (x, v): these are the velocities'
+        step_times.append(ta.time)
+        return progress is None or progress(ta)
+
     # The Taylor coefficients of each step, kept by a step callback: heyoka's c_output gives the same numbers
     # but builds a continuous_output (an LLVM state) on every call, ~2.5 ms per segment.
-    callback = record if dense else progress
-    per_step = dense_bytes_per_step(ta) if dense else 0
+    callback = (record_positions if positions else record) if dense else progress
+    per_step = dense_bytes_per_step(ta, positions) if dense else 0
     outcome, n_steps, stop = propagate_until(ta, t_final, callback=callback, write_tc=dense,
                                              max_steps=allowance(per_step))
     spend(n_steps, per_step)
@@ -195,7 +207,12 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     if stop is None and outcome != hy.taylor_outcome.time_limit:
         event, failure = terminal_event(outcome, n_events)
     out: DenseOutput | None = None
-    if dense and n_steps > 0:
+    if dense and n_steps > 0 and positions:
+        out = SecondOrderDense(np.array(step_times), np.array(tcs), np.array(tops), fp_type)
+        times = out.times[1:]
+        starts = np.concatenate([out.tcs[1:, :, 0], out.step_velocities[1:]], axis=1)  # v_0 = x_1 exactly
+        states = np.concatenate([starts, y_end[None, :]])
+    elif dense and n_steps > 0:
         out = TaylorDense(np.array(step_times), np.array(tcs), fp_type)
         times = out.times[1:]
         states = np.concatenate([out.tcs[1:, :, 0], y_end[None, :]])  # a step's order-0 term is its start
