@@ -11,7 +11,7 @@ assignment per entry.  That source runs as it is under numba (``numba.njit``) an
 JAX (``jax.jit``: the array indexing and ``stack`` are the only array operations).
 
 The transcription is checked against the heyoka function at random states by
-``tests/test_peer_equations.py``.
+``tests/test_peers.py``.
 """
 
 from __future__ import annotations
