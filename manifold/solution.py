@@ -149,7 +149,7 @@ class TaylorDense:
         return polynomial_values(self.tcs[steps], h[:, None])
 
 
-class SecondOrderDense:
+class SecondOrderDense(TaylorDense):
     """Taylor polynomials of every step of a system whose first ``N`` equations are ``x' = v`` (positions
     ``x``, velocities ``v`` the next ``N`` state components): only the positions' polynomials are kept.
 
@@ -162,25 +162,19 @@ class SecondOrderDense:
     """
 
     def __init__(self, times: NDArray, tcs: NDArray, top: NDArray, fp_type: Any) -> None:
-        self.times, self.tcs, self.top, self.fp_type = times, tcs, top, fp_type
-        self._sign = 1.0 if times[-1] >= times[0] else -1.0
-        self._starts = np.asarray(times[:-1], dtype=float) * self._sign
+        super().__init__(times, tcs, fp_type)  # tcs: the positions' coefficients, (steps, N, order + 1)
+        self.top = top  # the velocities' last coefficients, (steps, N)
         self._factors = as_fp(np.arange(1, tcs.shape[-1]), fp_type)  # (j + 1) for x_{j+1}, j = 0 .. order - 1
 
     @property
     def nbytes(self) -> int:
         """Bytes held: the step times, the positions' coefficients and the velocities' last ones."""
-        return int(self.times.nbytes + self.tcs.nbytes + self.top.nbytes)
+        return super().nbytes + int(self.top.nbytes)
 
     @property
     def step_velocities(self) -> NDArray:
         """The velocity at the start of every step, ``v_0 = x_1`` (exact)."""
         return self.tcs[:, :, 1]
-
-    def __call__(self, ts: NDArray) -> NDArray:
-        s = np.searchsorted(self._starts, np.asarray(ts, dtype=float) * self._sign, side="right") - 1
-        s = np.clip(s, 0, len(self._starts) - 1)
-        return self.at(s, as_fp(ts, self.fp_type) - self.times[s])
 
     def at(self, steps: NDArray, h: NDArray) -> NDArray:
         """States ``(m, 2N)``, positions then velocities, at offsets ``h`` from the starts of the steps ``steps``."""
