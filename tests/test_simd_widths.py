@@ -18,19 +18,20 @@ import pytest
 
 from linkage import Chain
 from linkage.motion import free_motion, free_motions
+from linkage.sampling import sample_starts
 from manifold.constrained_batch import MAX_BATCH_LANES
 
 from .conftest import SIMD_WIDTH_VARIABLE
-from .test_ensembles import FAST, _starts
 
 CHAIN = Chain(4, 2.6)
+FAST = {"compact_mode": True}  # compiles in seconds: CI starts cold
 WIDTHS = (1, 2, 4, 8)
 
 
 @pytest.mark.parametrize("width", WIDTHS)
 def test_the_default_batch_follows_the_width_and_agrees_with_single_solves(width, monkeypatch):
     monkeypatch.setattr(hy, "recommended_simd_size", lambda *args, **kwargs: width)
-    H, V = _starts(CHAIN, 5)  # one full batch and a short one for widths up to 4; one short batch of 8
+    H, V = sample_starts(CHAIN, 5, 0.5, np.random.default_rng(0))  # full and short batches up to 4; one of 8
     ensemble = free_motions(CHAIN, H, V, 3.0, **FAST)
     assert ensemble.solution.batch_size == width
     assert ensemble.success.all(), ensemble.messages
