@@ -1,0 +1,101 @@
+"""The configuration space as the explorer draws it: meshes and point clouds computed by the library.
+
+* Where the chain has an atlas (its space is the sphere ``S^(n-2)``), chart 0's suspension coordinates read it
+  as the round sphere (:meth:`charts.SuspensionChart.sphere_point`, the picture of :func:`linkage.draw.sphere_coordinates`):
+  for ``n = 4`` a latitude-longitude mesh of ``S^2`` whose vertices are configurations, coloured by the Gaussian
+  curvature of the kinetic-energy metric there (:meth:`manifold.InducedMetric.gaussian_curvature`); for ``n = 3``
+  the circle.
+* For every ``n``, the rod angles ``(theta_1, theta_2, theta_3)`` of configurations place the space in the
+  cube ``T^3 = [-pi, pi]^3`` (the torus ``T^2`` for ``n = 3``, where ``theta_3`` is the base's): the sphere's
+  mesh vertices for ``n = 4``, the chart-0 circle for ``n = 3``, else configurations sampled uniformly in the
+  Riemannian volume (:func:`linkage.sampling.sample_configurations`; without an atlas uniformly in the diagonal
+  coordinates, :meth:`linkage.diagonals.DiagonalSpace.sample`), a projection named as such.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from charts.suspension import sphere_parameters
+
+from ..chain import Chain
+from ..sampling import sample_configurations
+from .protocol import as_pairs
+
+__all__ = ["pose_from_sphere", "space_payload"]
+
+
+def _sphere_mesh(chain: Chain, resolution: int) -> dict[str, Any]:
+    """Latitude-longitude mesh of chart 0's sphere ``S^2`` (``n = 4``): vertices, triangles, configurations, angles
+    and Gaussian curvature per vertex."""
+    chart0 = chain.atlas().charts[0]
+    lat = np.linspace(-np.pi / 2, np.pi / 2, resolution + 1)
+    lon = np.linspace(-np.pi, np.pi, 2 * resolution + 1)
+    a = np.stack(np.meshgrid(lat, lon, indexing="ij"), axis=-1).reshape(-1, 2)
+    hinges = chart0.hinges(a)
+    curvature = chain.metric().gaussian_curvature(chain.to_point(hinges))
+    cols = len(lon)
+    quads = [(i * cols + j, (i + 1) * cols + j, (i + 1) * cols + j + 1, i * cols + j + 1)
+             for i in range(resolution) for j in range(cols - 1)]
+    faces = [[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads]
+    return {"vertices": chart0.sphere_point(a).tolist(), "faces": faces, "hinges": as_pairs(hinges),
+            "angles": chain.angles(hinges)[:, :3].tolist(), "curvature": np.asarray(curvature).tolist()}
+
+
+def _circle(chain: Chain, resolution: int) -> tuple[NDArray, NDArray]:
+    """``n = 3`` with an atlas: chart 0's circle, its points on the unit circle and its configurations."""
+    chart0 = chain.atlas().charts[0]
+    a = np.linspace(-np.pi, np.pi, 8 * resolution + 1)[:, None]
+    return chart0.sphere_point(a), chart0.hinges(a)
+
+
+def space_payload(chain: Chain, resolution: int = 24, samples: int = 3000, seed: int = 0) -> dict[str, Any]:
+    """What the page draws of the configuration space of ``chain`` (see the module's docstring).
+
+    Returns
+    -------
+    dict
+        ``n``, ``topology`` (:meth:`linkage.topology.Topology.summary`), ``hasAtlas``, ``chartIds``;
+        ``sphere`` (``n = 4`` with an atlas: the mesh, else ``None``); ``circle`` (``n = 3`` with an atlas:
+        points of the unit circle and their rod angles, else ``None``); ``torus``: ``{angles, name}``, rod angles
+        of configurations in the cube, and the name of the projection; ``start``: one configuration of the space
+        (chart 0's parameters all 0.4 where there is an atlas, else the first sample) to pose the chain in.
+    """
+    topology = chain.topology()
+    out: dict[str, Any] = {"n": chain.n, "lengths": chain.lengths.tolist(), "L": chain.L,
+                           "topology": topology.summary(), "hasAtlas": chain.has_atlas,
+                           "chartIds": [str(c) for c in chain.atlas().ids] if chain.has_atlas else [],
+                           "sphere": None, "circle": None}
+    if chain.n == 4 and chain.has_atlas:
+        out["sphere"] = _sphere_mesh(chain, resolution)
+        angles = np.array(out["sphere"]["angles"])
+        name = "the configuration sphere in the cube of rod angles (theta_1, theta_2, theta_3)"
+    elif chain.n == 3 and chain.has_atlas:
+        points, hinges = _circle(chain, resolution)
+        angles = chain.angles(hinges)
+        out["circle"] = {"points": points.tolist(), "angles": angles[:, :2].tolist()}
+        name = "the configuration circle in the torus of rod angles (theta_1, theta_2)"
+    else:
+        rng = np.random.default_rng(seed)
+        if chain.has_atlas:
+            hinges, how = sample_configurations(chain, samples, rng), "uniformly in the Riemannian volume"
+        else:  # no atlas to sample through: uniform in the diagonals and flips (linkage.diagonals)
+            hinges, how = chain.diagonal_space().sample(samples, rng).hinges, "uniformly in the diagonal coordinates"
+        angles = chain.angles(hinges)
+        name = (f"projection of {samples} configurations sampled {how} onto the rod angles "
+                f"({'theta_1, theta_2' if chain.n == 3 else 'theta_1, theta_2, theta_3'})")
+    out["torus"] = {"angles": np.asarray(angles)[:, :3].tolist(), "name": name}
+    start = chain.atlas().charts[0].hinges(np.full(chain.n - 2, 0.4)) if chain.has_atlas else hinges[0]
+    out["start"] = as_pairs(start)
+    return out
+
+
+def pose_from_sphere(chain: Chain, point: NDArray) -> NDArray:
+    """The configuration at ``point`` of chart 0's round sphere ``S^(n-2)`` (any nonzero scale): the inverse of
+    the picture, :func:`charts.suspension.sphere_parameters` then the chart map."""
+    if not chain.has_atlas:
+        raise ValueError(f"the sphere picture needs an atlas, and this chain has none: {chain.topology().summary()}")
+    return chain.atlas().charts[0].hinges(sphere_parameters(point))

@@ -1,0 +1,261 @@
+"""The explorer's HTTP and WebSocket API (linkage.explore.app) against the library it serves.
+
+The motions it answers must be free_motion's own (compared number for number: JSON carries a float's repr,
+which round-trips exactly); malformed requests must each get a 4xx naming the field while the server keeps
+answering; 50 concurrent T = 10 motions are answered by a real uvicorn server.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import math
+import warnings
+
+import httpx
+import numpy as np
+import pytest
+
+with warnings.catch_warnings():  # Starlette's test client would rather have the httpx2 fork; httpx serves it
+    warnings.simplefilter("ignore")
+    from starlette.testclient import TestClient
+
+from linkage import Chain, HingeConstraints
+from linkage.explore.app import ServerConfig, create_app
+from linkage.explore.cli import serve_in_thread
+from linkage.explore.protocol import Cancelled, Limits, as_pairs, motion_request, solve_motion
+from linkage.motion import free_motion
+from linkage.sampling import sample_starts
+
+
+CHAIN = Chain(4, 3.0)
+
+
+def pole_start() -> tuple[np.ndarray, np.ndarray]:
+    """A unit-speed start of four unit rods (L = 3) heading over the pole phi_4 = pi/2 of chart 0."""
+    chart0 = CHAIN.atlas().charts[0]
+    a0, c0 = np.array([1.2, 0.3]), np.array([1.0, 0.2])
+    v0 = CHAIN.from_point(chart0.tangent_vector(a0, c0))
+    return chart0.hinges(a0), v0 / np.sqrt(2 * CHAIN.kinetic_energy(v0))
+
+
+def random_start(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    H, V = sample_starts(CHAIN, 1, 0.5, np.random.default_rng(seed))
+    return H[0], V[0]
+
+
+def body(h: np.ndarray, v: np.ndarray, **extra: object) -> dict:
+    return {"lengths": 4, "L": 3.0, "hinges": as_pairs(h), "velocity": as_pairs(v), "T": 10.0, "samples": 101,
+            **extra}
+
+
+def complex_of(pairs: list) -> np.ndarray:
+    a = np.array(pairs)
+    return a[..., 0] + 1j * a[..., 1]
+
+
+@pytest.fixture(scope="module")
+def client() -> TestClient:
+    return TestClient(create_app())
+
+
+@pytest.mark.parametrize("method", ["charts", "hinges"])
+def test_motion_is_free_motions(client: TestClient, method: str) -> None:
+    h, v = random_start(3)
+    answer = client.post("/api/motion", json=body(h, v, method=method))
+    assert answer.status_code == 200, answer.text
+    got = answer.json()
+    times = np.linspace(0.0, 10.0, 101)
+    ref = free_motion(CHAIN, h, v, 10.0, method=method, t_eval=times)
+    assert got["times"] == times.tolist()
+    assert np.array_equal(complex_of(got["hinges"]), ref.hinges)
+    assert np.array_equal(complex_of(got["velocities"]), ref.velocities)
+    assert got["method"] == method and got["precision"] == "float64"
+    assert max(got["energyError"]) <= 1e-12 and got["maxEnergyError"] <= 1e-12
+    assert np.max(CHAIN.closure_residual(complex_of(got["hinges"]))) < 1e-12
+    # the rod angles and chart-0 sphere points are those of the hinges: |s| = 1, and angles reproduce the rods
+    assert np.allclose(np.linalg.norm(got["sphere"], axis=1), 1.0, atol=1e-12)
+    rods = np.diff(np.concatenate([np.zeros((101, 1)), complex_of(got["hinges"]), np.full((101, 1), 3.0)], axis=1))
+    assert np.allclose(np.exp(1j * np.array(got["angles"])), rods, atol=1e-12)
+
+
+def test_precision_names_reach_the_solver(client: TestClient) -> None:
+    h, v = random_start(4)
+    got = client.post("/api/motion", json=body(h, v, precision="longdouble", T=1.0, samples=5)).json()
+    ref = free_motion(CHAIN, h, v, 1.0, fp_type=np.longdouble, t_eval=np.linspace(0, 1, 5))
+    assert got["precision"] == "longdouble"
+    assert np.array_equal(complex_of(got["hinges"]), ref.hinges)
+
+
+def test_pole_crossing_reports_its_switch(client: TestClient) -> None:
+    h, v = pole_start()
+    got = client.post("/api/motion", json=body(h, v, samples=501)).json()
+    sphere = np.array(got["sphere"])
+    assert sphere[:, 0].max() > 0.99  # over chart 0's pole: sin(phi_4) -> 1
+    assert len(got["switches"]) >= 1
+    times, charts = np.array(got["times"]), np.array(got["chart"])
+    for s in got["switches"]:  # the sampled chart is the switch's 'from' before it and its 'to' just after
+        before, after = np.flatnonzero(times < s["t"])[-1], np.flatnonzero(times >= s["t"])[0]
+        assert charts[before] == s["from"] and charts[after] == s["to"]
+    assert got["chartIds"][got["switches"][0]["to"]].startswith("shift")
+
+
+def malformed_requests() -> list[tuple[object, str, int]]:
+    h, v = random_start(5)
+    good = body(h, v)
+    far = as_pairs(h + 0.1)
+    sideways = as_pairs(1j * v)
+    cases: list[tuple[object, str, int]] = [
+        ([1, 2], "body", 400),
+        ("hello", "body", 400),
+        ({**good, "colour": "red"}, "colour", 400),
+        ({k: x for k, x in good.items() if k != "hinges"}, "hinges", 400),
+        ({k: x for k, x in good.items() if k != "T"}, "T", 400),
+        ({**good, "T": math.nan}, "T", 400),
+        ({**good, "T": math.inf}, "T", 400),
+        ({**good, "T": 0}, "T", 400),
+        ({**good, "T": "10"}, "T", 400),
+        ({**good, "T": True}, "T", 400),
+        ({**good, "L": math.nan}, "L", 400),
+        ({**good, "L": -1.0}, "L", 400),
+        ({**good, "L": 5.0}, "L", 400),  # an empty configuration space: L longer than the four rods
+        ({**good, "lengths": [1, 1, 1, 10]}, "lengths", 400),  # empty: one rod longer than the rest
+        ({**good, "lengths": 1}, "lengths", 400),
+        ({**good, "lengths": "four"}, "lengths", 400),
+        ({**good, "lengths": [1, 1, -1, 1]}, "lengths", 400),
+        ({**good, "masses": [1, 1]}, "masses", 400),
+        ({**good, "masses": 0}, "masses", 400),
+        ({**good, "hinges": as_pairs(h[:2])}, "hinges", 400),
+        ({**good, "hinges": [[0, 0, 0]] * 3}, "hinges", 400),
+        ({**good, "hinges": [[math.nan, 0]] * 3}, "hinges", 400),
+        ({**good, "hinges": far}, "hinges", 400),  # off the constraints
+        ({**good, "velocity": sideways}, "velocity", 400),  # not tangent
+        ({**good, "velocity": [[0, 0]] * 3}, "velocity", 400),
+        ({**good, "method": "euler"}, "method", 400),
+        ({**good, "precision": "float16"}, "precision", 400),
+        ({**good, "samples": 1}, "samples", 400),
+        ({**good, "samples": 10**7}, "samples", 400),
+        ({**good, "T": 1e6}, "T", 413),  # over the budget of work
+    ]
+    return cases
+
+
+def test_malformed_requests_are_refused_and_the_server_stays_up(client: TestClient) -> None:
+    cases = malformed_requests()
+    assert len(cases) == 30
+    for request, field, status in cases:
+        answer = client.post("/api/motion", content=json.dumps(request))  # NaN and inf written as JSON5 does
+        assert answer.status_code == status, (request, answer.text)
+        error = answer.json()
+        assert error["field"].split("[")[0] == field, (request, error)  # 'hinges[0]' names an entry of hinges
+        assert len(error["error"]) > 10
+    raw = client.post("/api/motion", content=b'{"lengths": 4, "L": NaN, "hinges": [], "velocity": [], "T": 1}')
+    assert raw.status_code == 400 and raw.json()["field"] == "L"
+    assert client.post("/api/motion", content=b"{not json").status_code == 400
+    h, v = random_start(6)
+    assert client.post("/api/motion", json=body(h, v)).status_code == 200
+
+
+def test_a_solve_over_its_step_budget_is_refused_with_the_solvers_reason() -> None:
+    tight = TestClient(create_app(ServerConfig(limits=Limits(max_steps=20))))
+    h, v = random_start(7)
+    answer = tight.post("/api/motion", json=body(h, v))
+    assert answer.status_code == 422
+    assert "budget" in answer.json()["error"]
+
+
+def test_a_cancelled_solve_stops() -> None:
+    h, v = random_start(8)
+    request = motion_request(body(h, v, T=500.0), Limits())
+    with pytest.raises(Cancelled):
+        solve_motion(request, Limits(), lambda: True)
+
+
+def test_static_files_stay_in_their_folder(client: TestClient) -> None:
+    assert client.get("/").status_code == 200
+    assert client.get("/static/vendor/three/LICENSE").status_code == 200
+    for path in ("/static/../app.py", "/static/%2e%2e/app.py", "/static/..%2fprotocol.py", "/app.py"):
+        assert client.get(path).status_code == 404, path
+
+
+def test_space_of_four_rods_is_a_sphere_of_configurations(client: TestClient) -> None:
+    got = client.post("/api/space", json={"lengths": 4, "L": 3.0, "resolution": 8}).json()
+    sphere = got["sphere"]
+    vertices, hinges = np.array(sphere["vertices"]), complex_of(sphere["hinges"])
+    assert np.allclose(np.linalg.norm(vertices, axis=1), 1.0)
+    assert np.max(CHAIN.closure_residual(hinges)) < 1e-9
+    # the pose of a vertex is its configuration (the picture's inverse)
+    k = 40
+    pose = client.post("/api/pose", json={"lengths": 4, "L": 3.0, "sphere": vertices[k].tolist()}).json()
+    assert np.allclose(complex_of(pose["hinges"]), hinges[k], atol=1e-9)
+    # Gauss-Bonnet: the curvature integrates to 4 pi over the sphere. Area elements from the metric's own
+    # Gram determinant on the mesh would repeat the library; instead the mean of K over the round picture must
+    # be positive and K finite
+    assert np.all(np.isfinite(sphere["curvature"])) and np.mean(sphere["curvature"]) > 0
+    assert got["torus"]["name"].startswith("the configuration sphere")
+
+
+@pytest.mark.parametrize("lengths,L,kind", [(3, 2.0, "circle"), (4, 1.0, "projection"), (5, 4.0, "projection")])
+def test_space_of_other_chains_is_named(client: TestClient, lengths: int, L: float, kind: str) -> None:
+    got = client.post("/api/space", json={"lengths": lengths, "L": L}).json()
+    assert got["sphere"] is None
+    assert kind in got["torus"]["name"]
+    assert np.all(np.abs(got["torus"]["angles"]) <= np.pi)
+
+
+def test_drag_keeps_the_chain_on_its_constraints(client: TestClient) -> None:
+    h, v = random_start(9)
+    other = random_start(11)[0]
+    target = h[1] + 0.2 * (other[1] - h[1])  # reachable: p_2 lives in the lens |p_2| <= 2, |p_2 - L| <= 2, convex
+    got = client.post("/api/project", json={"lengths": 4, "L": 3.0, "hinges": as_pairs(h), "hinge": 1,
+                                            "target": [target.real, target.imag], "velocity": as_pairs(v + 0.3)})
+    assert got.status_code == 200, got.text
+    moved, w = complex_of(got.json()["hinges"]), complex_of(got.json()["velocity"])
+    assert np.max(CHAIN.closure_residual(moved)) < 1e-12
+    assert abs(moved[1] - target) < 1e-4  # the dragged hinge follows the pointer
+    constraints = HingeConstraints(CHAIN)
+    assert np.max(np.abs(constraints.jacobian(CHAIN.to_point(moved)) @ CHAIN.to_point(w))) < 1e-12  # tangent
+    again = client.post("/api/project", json={"lengths": 4, "L": 3.0, "hinges": as_pairs(moved),
+                                              "velocity": as_pairs(w)}).json()
+    assert np.allclose(complex_of(again["velocity"]), w, atol=1e-14)  # a projection: idempotent
+    bad = client.post("/api/project", json={"lengths": 4, "L": 3.0, "hinges": as_pairs(h), "hinge": 3,
+                                            "target": [0, 0]})
+    assert bad.status_code == 400 and bad.json()["field"] == "hinge"
+
+
+def test_stream_continues_window_after_window(client: TestClient) -> None:
+    h, v = random_start(10)
+    ref = free_motion(CHAIN, h, v, 4.0, t_eval=np.linspace(0, 4, 21))
+    with client.websocket_connect("/api/stream") as ws:
+        ws.send_json({"type": "launch", **{k: x for k, x in body(h, v).items() if k not in ("T", "samples")},
+                      "window": 4.0, "rate": 5.0})
+        first = ws.receive_json()
+        assert first["type"] == "chunk" and first["index"] == 0
+        assert np.array_equal(complex_of(first["hinges"]), ref.hinges)
+        ws.send_json({"type": "more"})
+        second = ws.receive_json()
+        assert second["index"] == 1 and second["times"][0] == 4.0 and second["times"][-1] == 8.0
+        assert np.array_equal(complex_of(second["hinges"])[0], complex_of(first["hinges"])[-1])
+        assert max(second["energyError"]) <= 1e-12  # relative to the launch's energy
+        ws.send_json({"type": "launch", "lengths": 4, "L": 3.0, "hinges": as_pairs(h), "velocity": as_pairs(1j * v)})
+        error = ws.receive_json()
+        assert error["type"] == "error" and error["field"] == "velocity"
+        ws.send_json({"type": "warp"})
+        assert ws.receive_json()["field"] == "type"
+        ws.send_json({"type": "stop"})
+        assert ws.receive_json() == {"type": "stopped"}
+
+
+def test_fifty_concurrent_clients_of_a_real_server() -> None:
+    starts = [random_start(100 + k) for k in range(5)]
+
+    async def run(url: str) -> list[httpx.Response]:
+        async with httpx.AsyncClient(base_url=url, timeout=300) as http:
+            return await asyncio.gather(*(http.post("/api/motion", json=body(*starts[k % 5])) for k in range(50)))
+
+    with serve_in_thread(4, 3.0) as url:
+        answers = asyncio.run(run(url))
+    assert [a.status_code for a in answers] == [200] * 50
+    for k, a in enumerate(answers[:5]):
+        ref = free_motion(CHAIN, *starts[k], 10.0, t_eval=np.linspace(0, 10, 101))
+        assert np.array_equal(complex_of(a.json()["hinges"]), ref.hinges)
