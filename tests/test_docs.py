@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ["manifold", "charts", "linkage", "linkage/spatial"]
+PACKAGES = ["manifold", "charts", "linkage", "linkage/spatial", "linkage/explore"]
 
 
 def _documented() -> set[str]:

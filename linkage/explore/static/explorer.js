@@ -55,10 +55,11 @@ function receive(message) {
   if (message.type !== 'chunk') return;
   if (message.index === 0) {
     if (!S.awaitingLaunch) return;
-    S.samples = []; S.switches = []; S.index = -1; S.clock = 0; S.maxError = 0;
+    S.samples = []; S.switches = []; S.index = -1; S.clock = 0; S.maxError = 0; S.aim = true;
     S.chartIds = message.chartIds; S.method = message.method; S.precision = message.precision;
     S.running = true; S.paused = false; S.metrics.frames = 0; S.metrics.playSeconds = 0;
     clearPaths();
+    S.metrics.tChunk = performance.now();
     S.awaitingLaunch.resolve(message); S.awaitingLaunch = null;
   } else if (S.awaitingLaunch || !S.running) {
     return;  // a window of a motion that a newer launch replaced
@@ -85,6 +86,7 @@ async function launch({ hinges, velocity }) {
   started.catch(() => {});
   S.lastLaunch = { ...chainBody(), hinges, velocity, method: $('c-method').value,
                    precision: $('c-precision').value, window: WINDOW, rate: RATE };
+  S.metrics.tSent = performance.now();
   S.ws.send(JSON.stringify({ type: 'launch', ...S.lastLaunch }));
   return started;
 }
@@ -174,11 +176,14 @@ const sun = new THREE.DirectionalLight(0xffffff, 1.5); sun.position.set(3, 4, 5)
 let sphereMesh = null, spherePath = null, torusPath = null, marker = null, switchMarkers = null;
 
 function curvatureColours(values) {
-  const top = Math.max(...values.map(Math.abs)) || 1;
+  const sorted = values.map(Math.abs).sort((a, b) => a - b);
+  const top = sorted[Math.floor(0.9 * (sorted.length - 1))] || 1;  // the 90th percentile: a peak washes out the rest
   const out = [];
-  for (const K of values) {  // diverging: blue < 0 < red, white at 0
+  for (const K of values) {  // diverging: blue < 0 < red, white at 0, saturated beyond the percentile
     const s = Math.max(-1, Math.min(1, K / top));
-    const c = s >= 0 ? new THREE.Color(1, 1 - 0.75 * s, 1 - 0.85 * s) : new THREE.Color(1 + 0.8 * s, 1 + 0.5 * s, 1);
+    const g = 0.62;  // a mid grey, so that the paths' colours stand out
+    const c = s >= 0 ? new THREE.Color(g + 0.3 * s, g - 0.35 * s, g - 0.4 * s)
+                     : new THREE.Color(g + 0.4 * s, g + 0.2 * s, g - 0.3 * s);
     out.push(c.r, c.g, c.b);
   }
   return out;
@@ -187,7 +192,7 @@ function curvatureColours(values) {
 function colourSphere() {
   if (!sphereMesh) return;
   const plain = $('c-colour').value === 'none';
-  const colours = plain ? S.space.sphere.vertices.flatMap(() => [0.75, 0.78, 0.82])
+  const colours = plain ? S.space.sphere.vertices.flatMap(() => [0.6, 0.62, 0.66])
                         : curvatureColours(S.space.sphere.curvature);
   sphereMesh.geometry.setAttribute('color', new THREE.Float32BufferAttribute(colours, 3));
 }
@@ -201,6 +206,10 @@ function pathLine(capacity) {
 }
 
 function pad3(v) { return [v[0] ?? 0, v[1] ?? 0, v[2] ?? 0]; }
+// chart 0's sphere coordinates (sin phi_4, cos phi_4 cos t, cos phi_4 sin t) drawn with the poles up and down;
+// paths a little outside the surface so that it does not hide them
+function picture(s, r = 1) { const v = pad3(s); return [r * v[1], r * v[0], r * v[2]]; }
+function unpicture(p) { return [p[1], p[0], p[2]]; }
 function torusPoint(angles) { return pad3(angles.slice(0, S.space.n === 3 ? 2 : 3).map((a) => a / Math.PI)); }
 
 function buildSpace() {
@@ -209,7 +218,7 @@ function buildSpace() {
   sphereMesh = null;
   if (sp.sphere) {
     const g = new THREE.BufferGeometry();
-    g.setAttribute('position', new THREE.Float32BufferAttribute(sp.sphere.vertices.flat(), 3));
+    g.setAttribute('position', new THREE.Float32BufferAttribute(sp.sphere.vertices.flatMap((v) => picture(v)), 3));
     g.setIndex(sp.sphere.faces.flat());
     g.computeVertexNormals();
     sphereMesh = new THREE.Mesh(g, new THREE.MeshLambertMaterial({ vertexColors: true, side: THREE.DoubleSide,
@@ -219,7 +228,7 @@ function buildSpace() {
       new THREE.LineBasicMaterial({ color: 0x000000, transparent: true, opacity: 0.12 })));
     colourSphere();
   } else if (sp.circle) {
-    const g = new THREE.BufferGeometry().setFromPoints(sp.circle.points.map((p) => new THREE.Vector3(p[0], p[1], 0)));
+    const g = new THREE.BufferGeometry().setFromPoints(sp.circle.points.map((p) => new THREE.Vector3(...picture(p))));
     sphereGroup.add(new THREE.Line(g, new THREE.LineBasicMaterial({ color: 0x9aa3ad })));
   }
   // the torus of rod angles: the cube [-pi, pi]^3 scaled to [-1, 1]^3, the space as points
@@ -256,7 +265,7 @@ function clearPaths() {
 
 function spacePoint(sample) {
   const torus = torusGroup.visible;
-  return torus ? torusPoint(sample.angles) : (sample.sphere ? pad3(sample.sphere) : null);
+  return torus ? torusPoint(sample.angles) : (sample.sphere ? picture(sample.sphere, 1.01) : null);
 }
 
 // the paths grow sample by sample up to the one shown
@@ -265,7 +274,7 @@ function extendPaths() {
   if (S.index < drawn - 1 || drawn > S.index + 1) drawn = 0;
   for (; drawn <= S.index; drawn++) {
     const s = S.samples[drawn], c = new THREE.Color(CHART_COLOURS[Math.max(0, s.chart) % CHART_COLOURS.length]);
-    if (s.sphere) setVertex(spherePath, drawn, pad3(s.sphere), c);
+    if (s.sphere) setVertex(spherePath, drawn, picture(s.sphere, 1.01), c);
     setVertex(torusPath, drawn, torusPoint(s.angles), c);
     const mid = s.hinges[Math.floor((S.space.n - 1) / 2)];
     const pos = trail.geometry.attributes.position, k = drawn % 4000;
@@ -309,15 +318,16 @@ function currentHinges() {
   return S.index >= 0 && S.samples.length ? S.samples[S.index].hinges : S.pose;
 }
 
-// a drag records (time, hinges); the release launches with the velocity of the last ~80 ms
+// a drag records (time of the pointer event, hinges there); the release launches with the velocity of the last
+// ~80 ms of it
 function makeDrag(project) {
   let history = [], busy = null, target = null;
   async function pump() {
     while (target !== null) {
-      const goal = target; target = null;
+      const { goal, time } = target; target = null;
       try {
         S.pose = await project(goal);
-        history.push({ time: performance.now(), hinges: S.pose });
+        history.push({ time, hinges: S.pose });
         drawChain(S.pose);
       } catch (err) { showError(err.message); }
     }
@@ -325,7 +335,7 @@ function makeDrag(project) {
   }
   return {
     start() { stop(); S.index = -1; S.samples = []; clearPaths(); history = [{ time: performance.now(), hinges: S.pose }]; },
-    move(goal) { target = goal; if (!busy) busy = pump(); },
+    move(goal) { target = { goal, time: performance.now() }; if (!busy) busy = pump(); },
     async release() {
       S.metrics.tFlick = performance.now(); S.metrics.flickToFirstFrameMs = null;
       if (busy) await busy;
@@ -371,7 +381,7 @@ function sphereHit(event) {
                                 -(event.clientY - rect.top) / rect.height * 2 + 1);
   raycaster.setFromCamera(ndc, spaceView.camera);
   const hit = sphereMesh && sphereGroup.visible ? raycaster.intersectObject(sphereMesh)[0] : null;
-  return hit ? hit.point.toArray() : null;
+  return hit ? unpicture(hit.point.toArray()) : null;
 }
 const sphereDrag = makeDrag(async (point) => (await api('/api/pose', { ...chainBody(), sphere: point })).hinges);
 spaceCanvas.addEventListener('pointerdown', (event) => {
@@ -453,7 +463,7 @@ async function fan() {
   }));
   for (const p of paths) {
     if (!p.sphere) continue;
-    const g = new THREE.BufferGeometry().setFromPoints(p.sphere.map((s) => new THREE.Vector3(...pad3(s))));
+    const g = new THREE.BufferGeometry().setFromPoints(p.sphere.map((s) => new THREE.Vector3(...picture(s, 1.01))));
     fanGroup.add(new THREE.Line(g, new THREE.LineBasicMaterial({ color: 0xedc948 })));
   }
 }
@@ -480,6 +490,10 @@ function frame(now) {
       drawChain(s.hinges); extendPaths();
       const p = spacePoint(s);
       marker.visible = !!p; if (p) marker.position.set(...p);
+      if (p && S.aim) {  // a new motion: turn the camera to where it starts
+        const at = new THREE.Vector3(...p).normalize().multiplyScalar(spaceView.camera.position.length());
+        spaceView.camera.position.copy(at.add(new THREE.Vector3(0, 0.6, 0))); S.aim = false;
+      }
       shown = S.index;
     }
     if (S.metrics.tFlick !== null && S.metrics.flickToFirstFrameMs === null) {
@@ -533,7 +547,8 @@ window.linkageExplorer = {
   error: () => S.error,
   metrics() {
     const m = S.metrics;
-    return { flickToFirstFrameMs: m.flickToFirstFrameMs, fps: m.playSeconds > 0 ? m.frames / m.playSeconds : null };
+    return { flickToFirstFrameMs: m.flickToFirstFrameMs, fps: m.playSeconds > 0 ? m.frames / m.playSeconds : null,
+             flickToLaunchMs: m.tSent - m.tFlick, launchToFirstWindowMs: m.tChunk - m.tSent };
   },
   ready: null,
 };

@@ -1,0 +1,178 @@
+"""The explorer's page in a real browser: headless Chromium from the distribution, driven by Playwright.
+
+The page is loaded from a real server; a hinge is dragged and flicked with the mouse, and what the page shows
+(``window.linkageExplorer.state()``) must be free_motion's motion from the start the page launched, sample for
+sample over T = 10.  A launch over chart 0's pole must show a switch; a new L must rebuild the space; a bad launch
+must show its error on the page.  The screenshots in docs/figures are taken here.
+
+Without Chromium (``/usr/bin/chromium``, Debian's package) these tests skip and say so, except in CI (the
+environment variable ``CI`` set), where a missing browser is a failure.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from linkage import Chain
+from linkage.explore.cli import serve_in_thread
+from linkage.explore.protocol import as_pairs
+from linkage.motion import free_motion
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
+CHAIN = Chain(4, 3.0)
+WINDOW, RATE = 10.0, 50.0  # the page's streaming window and samples per unit time (explorer.js)
+
+
+def _missing() -> str | None:
+    if not (os.path.exists(CHROMIUM) or shutil.which("chromium")):
+        return f"no Chromium at {CHROMIUM} (Debian: apt-get install chromium)"
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        return "Playwright for Python is not installed (pip install -e '.[test]')"
+    return None
+
+
+@pytest.fixture(scope="module")
+def page() -> Iterator[Any]:
+    missing = _missing()
+    if missing is not None:
+        if os.environ.get("CI"):
+            pytest.fail(f"the browser tests must run in CI: {missing}")
+        pytest.skip(missing)
+    from playwright.sync_api import sync_playwright
+
+    with serve_in_thread(4, 3.0) as url, sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        tab = browser.new_page(viewport={"width": 1400, "height": 720})
+        errors: list[str] = []
+        tab.on("pageerror", lambda err: errors.append(str(err)))
+        tab.goto(url)
+        tab.evaluate("window.linkageExplorer.ready")
+        yield tab
+        browser.close()
+        assert errors == [], errors
+
+
+def state(page: Any) -> dict:
+    return page.evaluate("window.linkageExplorer.state()")
+
+
+def wait_until(page: Any, condition: str, timeout_ms: float = 60_000) -> None:
+    page.wait_for_function(condition, timeout=timeout_ms, polling=50)
+
+
+def complex_of(pairs: list) -> np.ndarray:
+    a = np.array(pairs)
+    return a[..., 0] + 1j * a[..., 1]
+
+
+def play_and_compare(page: Any, reference: Any, until: float) -> list[dict]:
+    """Read state() while the motion plays up to ``until``; every state must be the reference's sample at its t."""
+    seen = []
+    while True:
+        s = state(page)
+        if s["t"] > until or (s["t"] >= WINDOW):
+            break
+        if s["t"] > 0:
+            k = int(round(s["t"] * RATE))
+            assert s["t"] == reference.times[k]
+            assert np.max(np.abs(complex_of(s["hinges"]) - reference.hinges[k])) <= 1e-12, s
+            assert s["energyError"] <= 1e-12
+            seen.append(s)
+        page.wait_for_timeout(40)
+    return seen
+
+
+def test_drag_and_flick_plays_free_motion(page: Any) -> None:
+    explorer = "window.linkageExplorer"
+    page.evaluate(f"{explorer}.setSpeed(2)")
+    hinge = page.evaluate(f"{explorer}.hingeScreen(1)")
+    page.mouse.move(hinge["x"], hinge["y"])
+    page.mouse.down()
+    for k in range(1, 13):  # drag the middle hinge up and right, faster at the end: a flick
+        page.mouse.move(hinge["x"] + 4 * k, hinge["y"] - 6 * k)
+        page.wait_for_timeout(15)
+    page.mouse.up()
+    wait_until(page, f"{explorer}.state().running")
+    launched = page.evaluate(f"{explorer}.lastLaunch()")
+    h0, v0 = complex_of(launched["hinges"]), complex_of(launched["velocity"])
+    assert np.max(CHAIN.closure_residual(h0)) < 1e-12
+    reference = free_motion(CHAIN, h0, v0, WINDOW, t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
+    seen = play_and_compare(page, reference, until=WINDOW)
+    page.evaluate(f"{explorer}.pause()")
+    FIGURES.mkdir(exist_ok=True)
+    page.screenshot(path=str(FIGURES / "explorer.png"))
+    page.evaluate(f"{explorer}.resume()")
+    assert len({s["t"] for s in seen}) >= 5 and max(s["t"] for s in seen) > 0.8 * WINDOW
+    metrics = page.evaluate(f"{explorer}.metrics()")
+    print(f"\nexplorer: flick to first frame {metrics['flickToFirstFrameMs']:.0f} ms, "
+          f"({metrics['flickToLaunchMs']:.0f} ms to project the flick and send it, "
+          f"{metrics['launchToFirstWindowMs']:.0f} ms for the server's first window), "
+          f"{metrics['fps']:.1f} frames per second while playing")
+
+
+def pole_start() -> tuple[np.ndarray, np.ndarray]:
+    """A unit-speed start heading over the pole phi_4 = pi/2 of chart 0 (the same as in test_explore_api)."""
+    chart0 = CHAIN.atlas().charts[0]
+    a0, c0 = np.array([1.2, 0.3]), np.array([1.0, 0.2])
+    v0 = CHAIN.from_point(chart0.tangent_vector(a0, c0))
+    return chart0.hinges(a0), v0 / np.sqrt(2 * CHAIN.kinetic_energy(v0))
+
+
+def test_a_launch_over_the_pole_shows_its_switch(page: Any) -> None:
+    h0, v0 = pole_start()
+    explorer = "window.linkageExplorer"
+    page.evaluate(f"{explorer}.setSpeed(2)")
+    page.evaluate(f"([h, v]) => {explorer}.launch({{hinges: h, velocity: v}})", [as_pairs(h0), as_pairs(v0)])
+    reference = free_motion(CHAIN, h0, v0, WINDOW, t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
+    first = reference.solution.switches[0].time
+    wait_until(page, f"{explorer}.state().t > {first}")
+    s = page.evaluate(f"{explorer}.pause()")
+    assert first < s["t"] < WINDOW
+    passed = [sw for sw in reference.solution.switches if sw.time <= s["t"]]
+    assert s["switches"] == len(passed) >= 1
+    assert s["chart"] == str(CHAIN.atlas().ids[reference.solution.parameters(s["t"])[0]])
+    assert page.evaluate(f"{explorer}.space()")["switchMarkers"] >= 1
+    page.wait_for_timeout(300)
+    page.screenshot(path=str(FIGURES / "explorer_pole.png"))
+    page.evaluate(f"{explorer}.resume()")
+
+
+def test_a_new_length_rebuilds_the_space(page: Any) -> None:
+    explorer = "window.linkageExplorer"
+    before = page.evaluate(f"{explorer}.space()")
+    page.evaluate(f"{explorer}.setLength(2.5)")
+    after = page.evaluate(f"{explorer}.space()")
+    assert after["builds"] == before["builds"] + 1 and after["L"] == 2.5 and "L = 2.5" in after["topology"]
+    assert after["vertices"] > 0
+    s = state(page)
+    assert not s["running"] and np.max(Chain(4, 2.5).closure_residual(complex_of(s["hinges"]))) < 1e-9
+    page.evaluate(f"{explorer}.setLength(1.0)")  # no longer a sphere: a surface of genus 4, shown as a projection
+    genus = page.evaluate(f"{explorer}.space()")
+    assert "genus 4" in genus["topology"] and genus["vertices"] == 0
+    assert page.eval_on_selector("#c-method", "el => el.value") == "hinges"
+    page.evaluate(f"{explorer}.setLength(3.0)")
+
+
+def test_a_bad_launch_shows_its_error_and_the_page_goes_on(page: Any) -> None:
+    explorer = "window.linkageExplorer"
+    h0, v0 = pole_start()
+    message = page.evaluate(f"([h, v]) => {explorer}.launch({{hinges: h, velocity: v}}).then(() => 'ok', e => e.message)",
+                            [as_pairs(h0 + 0.2), as_pairs(v0)])
+    assert "constraints" in message
+    assert page.is_visible("#error") and "hinges" in page.inner_text("#error")
+    assert not state(page)["running"]
+    page.evaluate(f"([h, v]) => {explorer}.launch({{hinges: h, velocity: v}})", [as_pairs(h0), as_pairs(v0)])
+    wait_until(page, f"{explorer}.state().t > 0")
+    assert not page.is_visible("#error")
