@@ -259,3 +259,68 @@ def test_fifty_concurrent_clients_of_a_real_server() -> None:
     for k, a in enumerate(answers[:5]):
         ref = free_motion(CHAIN, *starts[k], 10.0, t_eval=np.linspace(0, 10, 101))
         assert np.array_equal(complex_of(a.json()["hinges"]), ref.hinges)
+
+
+def test_clients_that_go_away_stop_their_solves() -> None:
+    """A solve of T = 20000 (minutes of work) is stopped when its HTTP client disconnects, and likewise the
+    window in progress of a WebSocket client that closes."""
+    app = create_app(ServerConfig(limits=Limits(max_cost=1e6)))
+    h, v = random_start(12)
+
+    async def leave_early(url: str) -> None:
+        async with httpx.AsyncClient(base_url=url) as http:
+            with pytest.raises(httpx.ReadTimeout):
+                await http.post("/api/motion", json=body(h, v, T=20000.0), timeout=0.5)
+
+    with serve_in_thread(app=app) as url:
+        asyncio.run(leave_early(url))
+        for _ in range(200):  # the server notices within its polling interval and the solver's next report
+            if app.state.cancelled_solves == 1:
+                break
+            asyncio.run(asyncio.sleep(0.05))
+        assert app.state.cancelled_solves == 1
+    with TestClient(app) as local:
+        with local.websocket_connect("/api/stream") as ws:
+            ws.send_json({"type": "launch", "lengths": 4, "L": 3.0, "hinges": as_pairs(h), "velocity": as_pairs(v),
+                          "window": 20000.0, "rate": 0.5})
+        for _ in range(200):
+            if app.state.cancelled_solves == 2:
+                break
+            asyncio.run(asyncio.sleep(0.05))
+        assert app.state.cancelled_solves == 2
+
+
+def test_the_command_serves_and_says_where() -> None:
+    import subprocess
+    import sys
+
+    process = subprocess.Popen([sys.executable, "-m", "linkage.explore", "--port", "0", "--no-browser", "--n", "5",
+                                "--L", "3.5"], stdout=subprocess.PIPE, text=True)
+    try:
+        assert process.stdout is not None
+        line = process.stdout.readline()
+        url = line.split()[2]
+        assert url.startswith("http://127.0.0.1:")
+        for _ in range(100):
+            try:
+                config = httpx.get(url + "api/config").json()
+                break
+            except httpx.ConnectError:
+                asyncio.run(asyncio.sleep(0.1))
+        assert config["lengths"] == 5 and config["L"] == 3.5
+    finally:
+        process.terminate()
+        process.wait(timeout=10)
+    refused = subprocess.run([sys.executable, "-m", "linkage.explore", "--n", "4", "--L", "5", "--no-browser"],
+                             capture_output=True, text=True)
+    assert refused.returncode == 2 and "configuration space is empty" in refused.stderr
+
+
+def test_without_the_extra_the_error_says_how_to_install_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib
+    import sys
+
+    monkeypatch.setitem(sys.modules, "starlette.applications", None)
+    monkeypatch.delitem(sys.modules, "linkage.explore.app")
+    with pytest.raises(ImportError, match=r"pip install -e '\.\[explore\]'"):
+        importlib.import_module("linkage.explore.app")

@@ -125,6 +125,7 @@ def create_app(config: ServerConfig | None = None) -> Starlette:
         except RequestError as err:
             return _error(err)
         except Cancelled:
+            app.state.cancelled_solves += 1
             return JSONResponse({"error": "the client went away", "field": "", "status": 499}, status_code=499)
         finally:
             gone.set()
@@ -163,7 +164,7 @@ def create_app(config: ServerConfig | None = None) -> Starlette:
 
     async def stream(websocket: WebSocket) -> None:
         await websocket.accept()
-        await _stream(websocket, limits, in_worker)
+        app.state.cancelled_solves += await _stream(websocket, limits, in_worker)
 
     routes = [
         Route("/", index),
@@ -175,7 +176,9 @@ def create_app(config: ServerConfig | None = None) -> Starlette:
         WebSocketRoute("/api/stream", stream),
         Mount("/static", app=StaticFiles(directory=STATIC), name="static"),
     ]
-    return Starlette(routes=routes)
+    app = Starlette(routes=routes)
+    app.state.cancelled_solves = 0  # solves stopped because their client went away (read by the tests)
+    return app
 
 
 def _solve_json(req: MotionRequest, limits: Limits, cancelled: Callable[[], bool]) -> dict[str, Any]:
@@ -189,13 +192,14 @@ LAUNCH_FIELDS = (*[f for f in MOTION_FIELDS if f not in ("T", "samples")], "type
 
 
 async def _stream(websocket: WebSocket, limits: Limits,
-                  in_worker: Callable[..., Awaitable[Any]]) -> None:
+                  in_worker: Callable[..., Awaitable[Any]]) -> int:
     """The stream's protocol: the page sends ``{"type": "launch", ...}`` (a motion request with ``window`` and
     ``rate`` instead of ``T`` and ``samples``), ``{"type": "more"}`` for the next window and ``{"type": "stop"}``;
     the server answers each window with ``{"type": "chunk", "index": k, ...}`` (the payload of
     :func:`.protocol.motion_payload`, times counted from the launch, energy errors relative to the launch's energy)
     and a refused launch with ``{"type": "error", "field", "error"}``.  Window ``k + 1`` starts from the end of
-    window ``k``.  A new launch, a stop or a disconnect stops the solve in progress."""
+    window ``k``.  A new launch, a stop or a disconnect stops the solve in progress.  Returns the number of
+    solves stopped so."""
     inbox: asyncio.Queue[dict[str, Any] | None] = asyncio.Queue()
     cancel = threading.Event()
 
@@ -216,12 +220,12 @@ async def _stream(websocket: WebSocket, limits: Limits,
 
     reader = asyncio.ensure_future(read())
     current: MotionRequest | None = None
-    index, t0, energy0 = 0, 0.0, 0.0
+    index, t0, energy0, stopped = 0, 0.0, 0.0, 0
     try:
         while True:
             message = await inbox.get()
             if message is None:
-                return
+                return stopped
             kind = message.get("type")
             try:
                 if kind == "launch":
@@ -247,9 +251,9 @@ async def _stream(websocket: WebSocket, limits: Limits,
                 current = None
                 await websocket.send_json({"type": "error", **err.as_json()})
             except Cancelled:
-                continue
+                stopped += 1
     except WebSocketDisconnect:
-        return
+        return stopped
     finally:
         cancel.set()
         reader.cancel()

@@ -20,6 +20,7 @@ from .protocol import Limits
 
 if TYPE_CHECKING:
     import uvicorn
+    from starlette.applications import Starlette
 
 __all__ = ["main", "serve_in_thread"]
 
@@ -71,11 +72,12 @@ def _url(sock: socket.socket) -> str:
     return f"http://{f'[{host}]' if ':' in host else host}:{port}/"
 
 
-def _server(lengths: int | list[float], L: float, budget: float) -> uvicorn.Server:
+def _server(lengths: int | list[float], L: float, budget: float, app: Starlette | None = None) -> uvicorn.Server:
     import uvicorn
 
     from .app import ServerConfig, create_app
-    app = create_app(ServerConfig(lengths=lengths, L=L, limits=Limits(max_cost=budget)))
+    if app is None:
+        app = create_app(ServerConfig(lengths=lengths, L=L, limits=Limits(max_cost=budget)))
     return uvicorn.Server(uvicorn.Config(app, log_level="warning", ws="websockets-sansio"))
 
 
@@ -96,9 +98,12 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 @contextmanager
 def serve_in_thread(lengths: int | list[float] = 4, L: float = 3.0, *, host: str = "127.0.0.1", port: int = 0,
-                    budget: float = Limits().max_cost) -> Iterator[str]:
-    """Run the server in a background thread for the block (tests, notebooks); yields its URL."""
-    server = _server(lengths, L, budget)
+                    budget: float = Limits().max_cost, app: Starlette | None = None) -> Iterator[str]:
+    """Run the server in a background thread for the block (tests, notebooks); yields its URL.
+
+    ``app`` serves a given app (:func:`linkage.explore.app.create_app`) instead of one for the chain and budget.
+    """
+    server = _server(lengths, L, budget, app)
     sock = _bind(host, port)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
