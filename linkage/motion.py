@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import inspect
 from functools import cache, cached_property
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -118,6 +119,13 @@ class ChainMotion:
     def relative_energy_error(self) -> float:
         """``max |E(t) - E(0)| / E(0)`` over the solver's own energy record."""
         return self.solution.relative_energy_error
+
+    def to_html(self, path: str | Path, samples: int = 600, title: str | None = None) -> Path:
+        """Write a self-contained HTML replay of the motion (three.js inside, no server, nothing from the network):
+        the chain with a trail, the path on chart 0's sphere coloured by chart with the switches, the relative
+        energy error.  :func:`linkage.explore.replay.write_replay`; needs dense output."""
+        from .explore.replay import write_replay
+        return write_replay(self, path, samples, title)
 
     @property
     def chart_ids(self) -> list:

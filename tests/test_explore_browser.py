@@ -176,3 +176,20 @@ def test_a_bad_launch_shows_its_error_and_the_page_goes_on(page: Any) -> None:
     page.evaluate(f"([h, v]) => {explorer}.launch({{hinges: h, velocity: v}})", [as_pairs(h0), as_pairs(v0)])
     wait_until(page, f"{explorer}.state().t > 0")
     assert not page.is_visible("#error")
+
+
+def test_a_replay_file_plays_without_a_server(page: Any, tmp_path: Path) -> None:
+    h0, v0 = pole_start()
+    path = free_motion(CHAIN, h0, v0, 20.0).to_html(tmp_path / "replay.html")
+    context = page.context.browser.new_context(viewport={"width": 1200, "height": 760})
+    replay = context.new_page()
+    requests: list[str] = []
+    errors: list[str] = []
+    replay.on("request", lambda r: requests.append(r.url))
+    replay.on("pageerror", lambda err: errors.append(str(err)))
+    replay.goto(path.as_uri())
+    replay.wait_for_function("window.linkageReplay && window.linkageReplay.index() > 20", timeout=60_000)
+    replay.screenshot(path=str(FIGURES / "replay.png"))
+    context.close()
+    assert errors == []
+    assert all(url.startswith(("file:", "blob:")) for url in requests), requests

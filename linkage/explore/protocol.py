@@ -276,13 +276,16 @@ def solve_motion(request: MotionRequest, limits: Limits, cancelled: Callable[[],
     return motion
 
 
-def motion_payload(motion: ChainMotion, *, energy0: float | None = None, t0: float = 0.0) -> dict[str, Any]:
+def motion_payload(motion: ChainMotion, *, times: NDArray | None = None, energy0: float | None = None,
+                   t0: float = 0.0) -> dict[str, Any]:
     """The JSON answer of a solved motion: its samples, their relative energy error, charts and switches.
 
     Parameters
     ----------
     motion
-        A solve with a ``t_eval`` grid.
+        A solve with a ``t_eval`` grid, or with dense output if ``times`` are given.
+    times
+        Times to sample the motion at (its dense output); default: its recorded times.
     energy0
         The energy that the errors are relative to (default: the motion's own energy at its first sample).
     t0
@@ -299,8 +302,11 @@ def motion_payload(motion: ChainMotion, *, energy0: float | None = None, t0: flo
         coordinates (:func:`linkage.draw.sphere_coordinates`; ``None`` without an atlas).
     """
     chain, solution = motion.chain, motion.solution
-    times = motion.times
-    energies = motion.energies
+    if times is None:
+        times, hinges, velocities = motion.times, motion.hinges, motion.velocities
+    else:
+        hinges, velocities = motion(times)
+    energies = chain.kinetic_energy(velocities)
     E0 = float(energies[0]) if energy0 is None else energy0
     has_charts = chain.has_atlas
     # the integrating chart; a hinge-space solve has none (reading the best chart per sample would cost ~2 ms each)
@@ -308,14 +314,14 @@ def motion_payload(motion: ChainMotion, *, energy0: float | None = None, t0: flo
     charts = np.asarray(solution.parameters(times)[0]) if in_charts else np.full(len(times), -1)
     return {
         "times": (times + t0).tolist(),
-        "hinges": as_pairs(motion.hinges),
-        "velocities": as_pairs(motion.velocities),
+        "hinges": as_pairs(hinges),
+        "velocities": as_pairs(velocities),
         "energyError": (np.abs(energies - E0) / E0).tolist(),
         "maxEnergyError": motion.relative_energy_error,
         "chart": charts.tolist(),
         "chartIds": [str(c) for c in chain.atlas().ids] if has_charts else [],
         "switches": [{"t": float(s.time) + t0, "from": s.from_chart, "to": s.to_chart} for s in solution.switches],
-        "angles": chain.angles(motion.hinges).tolist(),
+        "angles": chain.angles(hinges).tolist(),
         "sphere": sphere_coordinates(motion, times).tolist() if has_charts else None,
         "nSteps": motion.n_steps,
     }
