@@ -241,6 +241,7 @@ function buildSpace() {
   spherePath = pathLine(MAX_SAMPLES + 2); torusPath = pathLine(MAX_SAMPLES + 2);
   torusPath = new THREE.Points(torusPath.geometry, new THREE.PointsMaterial({ vertexColors: true, size: 0.03 }));
   sphereGroup.add(spherePath); torusGroup.add(torusPath);
+  if (marker) spaceView.scene.remove(marker, switchMarkers);  // those of the space shown before
   marker = new THREE.Mesh(new THREE.SphereGeometry(0.035, 16, 12), new THREE.MeshBasicMaterial({ color: 0xffffff }));
   spaceView.scene.add(marker);
   switchMarkers = new THREE.Group();
@@ -415,7 +416,9 @@ async function rebuild() {
   $('topology').textContent = S.space.topology;
   const charts = $('c-method').options[0];  // 'charts'
   charts.disabled = !S.space.hasAtlas;
-  if (!S.space.hasAtlas) $('c-method').value = 'hinges';
+  if (!S.space.hasAtlas && $('c-method').value === 'charts') { $('c-method').value = 'hinges'; S.methodForced = true; }
+  if (S.space.hasAtlas && S.methodForced) { $('c-method').value = 'charts'; S.methodForced = false; }
+  if (S.space.n === 3) spaceView.camera.position.set(0, 0, 3.4);  // a plane picture: seen from above
   $('c-L').value = S.chain.L; $('c-L-out').textContent = S.chain.L.toFixed(2);
   resize(chainView, fitChain); buildChain(); buildSpace(); drawChain(S.pose);
   return S.space;
@@ -490,7 +493,7 @@ function frame(now) {
       drawChain(s.hinges); extendPaths();
       const p = spacePoint(s);
       marker.visible = !!p; if (p) marker.position.set(...p);
-      if (p && S.aim) {  // a new motion: turn the camera to where it starts
+      if (p && S.aim && S.space.sphere && sphereGroup.visible) {  // a new motion on S^2: turn to where it starts
         const at = new THREE.Vector3(...p).normalize().multiplyScalar(spaceView.camera.position.length());
         spaceView.camera.position.copy(at.add(new THREE.Vector3(0, 0.6, 0))); S.aim = false;
       }
