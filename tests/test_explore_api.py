@@ -192,6 +192,9 @@ def test_space_of_four_rods_is_a_sphere_of_configurations(client: TestClient) ->
     # Gram determinant on the mesh would repeat the library; instead the mean of K over the round picture must
     # be positive and K finite
     assert np.all(np.isfinite(sphere["curvature"])) and np.mean(sphere["curvature"]) > 0
+    # second fundamental form: K = <II_11, II_22> - |II_12|^2 <= max_v |II(v, v)|^2 <= |II|^2 (unit v)
+    K, stiff, bend = (np.array(sphere[k]) for k in ("curvature", "stiffness", "bending"))
+    assert np.all(K <= stiff**2 * (1 + 1e-9)) and np.all(stiff**2 <= bend * (1 + 1e-9))
     assert got["torus"]["name"].startswith("the configuration sphere")
 
 

@@ -3,7 +3,8 @@
 * Where the chain has an atlas (its space is the sphere ``S^(n-2)``), chart 0's suspension coordinates read it
   as the round sphere (:meth:`charts.SuspensionChart.sphere_point`, the picture of :func:`linkage.draw.sphere_coordinates`):
   for ``n = 4`` a latitude-longitude mesh of ``S^2`` whose vertices are configurations, coloured by the Gaussian
-  curvature of the kinetic-energy metric there (:meth:`manifold.InducedMetric.gaussian_curvature`); for ``n = 3``
+  curvature of the kinetic-energy metric there (:meth:`manifold.InducedMetric.gaussian_curvature`), by the
+  bending ``|II|^2`` or by the largest stiffness ``|II(v, v)|`` (:func:`largest_stiffness`); for ``n = 3``
   the circle.
 * For every ``n``, the rod angles ``(theta_1, theta_2, theta_3)`` of configurations place the space in the
   cube ``T^3 = [-pi, pi]^3`` (the torus ``T^2`` for ``n = 3``, where ``theta_3`` is the base's): the sphere's
@@ -22,27 +23,46 @@ from numpy.typing import NDArray
 from charts.suspension import sphere_parameters
 
 from ..chain import Chain
+from ..geometry import tangent_basis
 from ..sampling import sample_configurations
 from .protocol import as_pairs
 
-__all__ = ["pose_from_sphere", "space_payload"]
+__all__ = ["STIFFNESS_DIRECTIONS", "largest_stiffness", "pose_from_sphere", "space_payload"]
+
+
+#: Directions over half a turn of the tangent plane at which the stiffness ``|II(v, v)|`` is read for its largest.
+STIFFNESS_DIRECTIONS = 12
+
+
+def largest_stiffness(chain: Chain, hinges: NDArray) -> NDArray:
+    """``max |II(v, v)|_K`` over unit tangent vectors ``v`` at each configuration of a surface (``n = 4``): how hard
+    the rods pull on the fastest-turning motion through it (:meth:`manifold.InducedMetric.stiffness` on
+    :data:`STIFFNESS_DIRECTIONS` directions of a K-orthonormal frame, :func:`linkage.geometry.tangent_basis`)."""
+    frames = np.array([chain.to_point(tangent_basis(chain, h)) for h in hinges])  # (m, 2, N)
+    points, metric = chain.to_point(hinges), chain.metric()
+    turns = np.linspace(0.0, np.pi, STIFFNESS_DIRECTIONS, endpoint=False)
+    return np.max(np.stack([np.asarray(metric.stiffness(points, np.cos(s) * frames[:, 0] + np.sin(s) * frames[:, 1]))
+                            for s in turns]), axis=0)
 
 
 def _sphere_mesh(chain: Chain, resolution: int) -> dict[str, Any]:
-    """Latitude-longitude mesh of chart 0's sphere ``S^2`` (``n = 4``): vertices, triangles, configurations, angles
-    and Gaussian curvature per vertex."""
+    """Latitude-longitude mesh of chart 0's sphere ``S^2`` (``n = 4``): vertices, triangles, configurations, angles,
+    and per vertex the Gaussian curvature, the bending ``|II|^2`` and the largest stiffness."""
     chart0 = chain.atlas().charts[0]
     lat = np.linspace(-np.pi / 2, np.pi / 2, resolution + 1)
     lon = np.linspace(-np.pi, np.pi, 2 * resolution + 1)
     a = np.stack(np.meshgrid(lat, lon, indexing="ij"), axis=-1).reshape(-1, 2)
     hinges = chart0.hinges(a)
-    curvature = chain.metric().gaussian_curvature(chain.to_point(hinges))
+    metric = chain.metric()
+    curvature = metric.gaussian_curvature(chain.to_point(hinges))
+    bending = metric.bending(chain.to_point(hinges))
     cols = len(lon)
     quads = [(i * cols + j, (i + 1) * cols + j, (i + 1) * cols + j + 1, i * cols + j + 1)
              for i in range(resolution) for j in range(cols - 1)]
     faces = [[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads]
     return {"vertices": chart0.sphere_point(a).tolist(), "faces": faces, "hinges": as_pairs(hinges),
-            "angles": chain.angles(hinges)[:, :3].tolist(), "curvature": np.asarray(curvature).tolist()}
+            "angles": chain.angles(hinges)[:, :3].tolist(), "curvature": np.asarray(curvature).tolist(),
+            "bending": np.asarray(bending).tolist(), "stiffness": largest_stiffness(chain, hinges).tolist()}
 
 
 def _circle(chain: Chain, resolution: int) -> tuple[NDArray, NDArray]:

@@ -189,11 +189,18 @@ function curvatureColours(values) {
   return out;
 }
 
+function logColours(values) {  // positive maps (bending, stiffness): dark blue to yellow on a log scale
+  const logs = values.map((v) => Math.log(Math.max(v, 1e-300)));
+  const lo = Math.min(...logs), span = Math.max(...logs) - lo || 1;
+  return logs.flatMap((l) => { const c = new THREE.Color().setHSL(0.66 - 0.5 * (l - lo) / span, 0.7, 0.35 + 0.25 * (l - lo) / span);
+                               return [c.r, c.g, c.b]; });
+}
+
 function colourSphere() {
   if (!sphereMesh) return;
-  const plain = $('c-colour').value === 'none';
-  const colours = plain ? S.space.sphere.vertices.flatMap(() => [0.6, 0.62, 0.66])
-                        : curvatureColours(S.space.sphere.curvature);
+  const kind = $('c-colour').value, sphere = S.space.sphere;
+  const colours = kind === 'none' ? sphere.vertices.flatMap(() => [0.6, 0.62, 0.66])
+                : kind === 'curvature' ? curvatureColours(sphere.curvature) : logColours(sphere[kind]);
   sphereMesh.geometry.setAttribute('color', new THREE.Float32BufferAttribute(colours, 3));
 }
 
