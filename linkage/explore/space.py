@@ -7,10 +7,9 @@
   bending ``|II|^2`` or by the largest stiffness ``|II(v, v)|`` (:func:`largest_stiffness`); for ``n = 3``
   the circle.
 * For every ``n``, the rod angles ``(theta_1, theta_2, theta_3)`` of configurations place the space in the
-  cube ``T^3 = [-pi, pi]^3`` (the torus ``T^2`` for ``n = 3``, where ``theta_3`` is the base's): the sphere's
-  mesh vertices for ``n = 4``, the chart-0 circle for ``n = 3``, else configurations sampled uniformly in the
-  Riemannian volume (:func:`linkage.sampling.sample_configurations`; without an atlas uniformly in the diagonal
-  coordinates, :meth:`linkage.diagonals.DiagonalSpace.sample`), a projection named as such.
+  cube ``T^3 = [-pi, pi]^3`` (the torus ``T^2`` for ``n = 3``): the sphere's mesh vertices for ``n = 4``, the
+  chart-0 circle for ``n = 3``, else configurations sampled uniformly in the diagonal coordinates
+  (:meth:`linkage.diagonals.DiagonalSpace.sample`, any lengths), a projection named as such.
 """
 
 from __future__ import annotations
@@ -24,7 +23,6 @@ from charts.suspension import sphere_parameters
 
 from ..chain import Chain
 from ..geometry import tangent_basis
-from ..sampling import sample_configurations
 from .protocol import as_pairs
 
 __all__ = ["STIFFNESS_DIRECTIONS", "largest_stiffness", "pose_from_sphere", "space_payload"]
@@ -99,14 +97,12 @@ def space_payload(chain: Chain, resolution: int = 24, samples: int = 3000, seed:
         out["circle"] = {"points": points.tolist(), "angles": angles[:, :2].tolist()}
         name = "the configuration circle in the torus of rod angles (theta_1, theta_2)"
     else:
-        rng = np.random.default_rng(seed)
-        if chain.has_atlas:
-            hinges, how = sample_configurations(chain, samples, rng), "uniformly in the Riemannian volume"
-        else:  # no atlas to sample through: uniform in the diagonals and flips (linkage.diagonals)
-            hinges, how = chain.diagonal_space().sample(samples, rng).hinges, "uniformly in the diagonal coordinates"
+        # hit-and-run in the diagonal polytope takes ~15 (n-2)^2 steps per sample: fewer samples for long chains
+        size = max(200, min(samples, samples * 36 // (chain.n - 2) ** 2))
+        hinges = chain.diagonal_space().sample(size, np.random.default_rng(seed)).hinges
         angles = chain.angles(hinges)
-        name = (f"projection of {samples} configurations sampled {how} onto the rod angles "
-                f"({'theta_1, theta_2' if chain.n == 3 else 'theta_1, theta_2, theta_3'})")
+        name = (f"projection of {size} configurations sampled uniformly in the diagonal coordinates onto the rod "
+                f"angles ({'theta_1, theta_2' if chain.n == 3 else 'theta_1, theta_2, theta_3'})")
     out["torus"] = {"angles": np.asarray(angles)[:, :3].tolist(), "name": name}
     start = chain.atlas().charts[0].hinges(np.full(chain.n - 2, 0.4)) if chain.has_atlas else hinges[0]
     out["start"] = as_pairs(start)
