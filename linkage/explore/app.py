@@ -64,6 +64,7 @@ class ServerConfig:
     workers: int = field(default_factory=lambda: os.cpu_count() or 1)
 
     def chain_json(self) -> dict[str, Any]:
+        """The chain as ``GET /api/config`` gives it to the page."""
         return {"lengths": self.lengths, "L": self.L}
 
 
