@@ -3,7 +3,7 @@
 The page is loaded from a real server; a hinge is dragged and flicked with the mouse, and what the page shows
 (``window.linkageExplorer.state()``) must be free_motion's motion from the start the page launched, sample for
 sample over T = 10.  A launch over chart 0's pole must show a switch; a new L must rebuild the space; a bad launch
-must show its error on the page.  The screenshots in docs/figures are taken here.
+must show its error on the page.  The screenshots in docs/figures are taken here (``LINKAGE_SCREENSHOTS=1``).
 
 Without Chromium (``/usr/bin/chromium``, Debian's package) these tests skip and say so, except in CI (the
 environment variable ``CI`` set), where a missing browser is a failure.
@@ -28,7 +28,15 @@ from linkage.motion import free_motion
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+#: ``LINKAGE_SCREENSHOTS=1`` writes the screenshots into the docs' figures (how they were taken); a plain run writes
+#: them to a temporary folder and leaves the checkout as it was
 FIGURES = Path(__file__).resolve().parents[1] / "docs" / "figures"
+
+
+@pytest.fixture
+def figures(tmp_path: Path) -> Path:
+    """Where this run's screenshots go: ``docs/figures`` with ``LINKAGE_SCREENSHOTS`` set, else ``tmp_path``."""
+    return FIGURES if os.environ.get("LINKAGE_SCREENSHOTS") else tmp_path
 CHAIN = Chain(4, 3.0)
 WINDOW, RATE = 10.0, 50.0  # the page's streaming window and samples per unit time (explorer.js)
 
@@ -94,7 +102,7 @@ def play_and_compare(page: Any, reference: Any, until: float) -> list[dict]:
     return seen
 
 
-def test_drag_and_flick_plays_free_motion(page: Any) -> None:
+def test_drag_and_flick_plays_free_motion(page: Any, figures: Path) -> None:
     explorer = "window.linkageExplorer"
     page.evaluate(f"{explorer}.setSpeed(2)")
     hinge = page.evaluate(f"{explorer}.hingeScreen(1)")
@@ -111,8 +119,7 @@ def test_drag_and_flick_plays_free_motion(page: Any) -> None:
     reference = free_motion(CHAIN, h0, v0, WINDOW, t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
     seen = play_and_compare(page, reference, until=WINDOW)
     page.evaluate(f"{explorer}.pause()")
-    FIGURES.mkdir(exist_ok=True)
-    page.screenshot(path=str(FIGURES / "explorer.png"))
+    page.screenshot(path=str(figures / "explorer.png"))
     page.evaluate(f"{explorer}.resume()")
     assert len({s["t"] for s in seen}) >= 5 and max(s["t"] for s in seen) > 0.8 * WINDOW
     metrics = page.evaluate(f"{explorer}.metrics()")
@@ -130,7 +137,7 @@ def pole_start() -> tuple[np.ndarray, np.ndarray]:
     return chart0.hinges(a0), v0 / np.sqrt(2 * CHAIN.kinetic_energy(v0))
 
 
-def test_a_launch_over_the_pole_shows_its_switch(page: Any) -> None:
+def test_a_launch_over_the_pole_shows_its_switch(page: Any, figures: Path) -> None:
     h0, v0 = pole_start()
     explorer = "window.linkageExplorer"
     page.evaluate(f"{explorer}.setSpeed(2)")
@@ -147,7 +154,7 @@ def test_a_launch_over_the_pole_shows_its_switch(page: Any) -> None:
     assert s["chart"] == str(CHAIN.atlas().ids[reference.solution.parameters(s["t"])[0]])
     assert page.evaluate(f"{explorer}.space()")["switchMarkers"] >= 1
     page.wait_for_timeout(300)
-    page.screenshot(path=str(FIGURES / "explorer_pole.png"))
+    page.screenshot(path=str(figures / "explorer_pole.png"))
     page.evaluate(f"{explorer}.resume()")
 
 
@@ -180,7 +187,7 @@ def test_a_bad_launch_shows_its_error_and_the_page_goes_on(page: Any) -> None:
     assert not page.is_visible("#error")
 
 
-def test_a_replay_file_plays_without_a_server(page: Any, tmp_path: Path) -> None:
+def test_a_replay_file_plays_without_a_server(page: Any, tmp_path: Path, figures: Path) -> None:
     h0, v0 = pole_start()
     path = free_motion(CHAIN, h0, v0, 20.0).to_html(tmp_path / "replay.html")
     context = page.context.browser.new_context(viewport={"width": 1200, "height": 760})
@@ -191,7 +198,7 @@ def test_a_replay_file_plays_without_a_server(page: Any, tmp_path: Path) -> None
     replay.on("pageerror", lambda err: errors.append(str(err)))
     replay.goto(path.as_uri())
     replay.wait_for_function("window.linkageReplay && window.linkageReplay.index() > 20", timeout=60_000)
-    replay.screenshot(path=str(FIGURES / "replay.png"))
+    replay.screenshot(path=str(figures / "replay.png"))
     context.close()
     assert errors == []
     assert all(url.startswith(("file:", "blob:")) for url in requests), requests
