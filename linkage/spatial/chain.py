@@ -11,7 +11,6 @@ is the relative pose of link ``o_j`` with respect to ``o_i``.
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -22,10 +21,11 @@ import numpy as np
 import sympy
 
 from .curve import INF, T, W, ConfigurationCurve, Place, to_mpc
+from .coupling import coupling_space, pose_product
 from .dualquat import DualQuaternion
 from .series import WORKING_DIGITS, PrecisionExhausted, Series
 
-__all__ = ["Bond", "RevoluteChain", "motion_factorization"]
+__all__ = ["Bond", "RevoluteChain", "distances_from_connections", "motion_factorization"]
 
 #: Tolerance of the unit-line test for float axes (exact axes are tested exactly).
 AXIS_TOL = 1e-10
@@ -556,6 +556,55 @@ class RevoluteChain:
 
         return f
 
+    def relative_pose(self, i: int, j: int, joints: Sequence[Any]) -> DualQuaternion:
+        """``F_ij = (t_{i+1} - h_{i+1}) ... (t_j - h_j)`` at ``joints`` ([HSS] eq. 2).
+
+        The pose of link ``o_j`` relative to ``o_i``; links 1-based, for ``i >= j`` the
+        product runs cyclically over ``i+1, ..., n, 1, ..., j`` (``i = j``: the full loop
+        starting after joint ``i``).  A joint value ``inf`` is the factor ``1``.
+        """
+        return pose_product(*self._forward(i, j, joints))
+
+    def relative_pose_backward(self, i: int, j: int, joints: Sequence[Any]) -> DualQuaternion:
+        """``G_ij = (t_i + h_i)(t_{i-1} + h_{i-1}) ... (t_{j+1} + h_{j+1})`` ([HSS] eq. 4).
+
+        The conjugate of the rest of the loop: on a configuration, ``F_ij G_ij^-1`` is
+        real, so ``G_ij`` is another representative of the same pose ``f_ij``
+        (``G_ij = (-1)^m (-t_i - h_i) ... (-t_{j+1} - h_{j+1})``, ``m`` factors, a point of
+        the coupling variety of the backward axes, see :meth:`coupling_varieties`).
+        """
+        self._check_link(i, "i")
+        self._check_link(j, "j")
+        if len(joints) != self.n:
+            raise ValueError(f"joints must have n = {self.n} entries; got {len(joints)}")
+        m = (i - j) % self.n or self.n
+        ks = [(i - 1 - s) % self.n for s in range(m)]
+        neg = [t if _joint_inf(t) else -joints[k] for k, t in zip(ks, (joints[k] for k in ks))]
+        return pose_product([self.axes[k] for k in ks], neg) * (-1) ** sum(not _joint_inf(t) for t in neg)
+
+    def coupling_varieties(self, i: int, j: int) -> tuple[tuple[DualQuaternion, ...], tuple[DualQuaternion, ...]]:
+        """The two axis sequences whose coupling varieties meet in the coupling curve ``C_ij``.
+
+        The coupling equality ([HSS] Section 2): ``C_ij = X_{i+1..j} cap X_{i, i-1, ..., j+1}``,
+        with ``X`` as in :func:`linkage.spatial.coupling.coupling_variety_parameters`.
+        Returns ``((h_{i+1}, ..., h_j), (h_i, h_{i-1}, ..., h_{j+1}))``.
+        """
+        self._check_link(i, "i")
+        self._check_link(j, "j")
+        forward = self._forward(i, j, [INF] * self.n)[0]
+        m = (i - j) % self.n or self.n
+        backward = [self.axes[(i - 1 - s) % self.n] for s in range(m)]
+        return tuple(forward), tuple(backward)
+
+    def _forward(self, i: int, j: int, joints: Sequence[Any]) -> tuple[list, list]:
+        self._check_link(i, "i")
+        self._check_link(j, "j")
+        if len(joints) != self.n:
+            raise ValueError(f"joints must have n = {self.n} entries; got {len(joints)}")
+        m = (j - i) % self.n or self.n
+        ks = [(i + s) % self.n for s in range(m)]
+        return [self.axes[k] for k in ks], [joints[k] for k in ks]
+
     def coupling_space_dimension(self, i: int, j: int) -> int:
         """``dim L_{i, i+1, ..., j}``: span of all products ``h_k1 ... h_ks``, ``i <= k1 < ... < ks <= j``.
 
@@ -566,13 +615,7 @@ class RevoluteChain:
         self._check_link(i, "i")
         self._check_link(j, "j")
         idx = [k % self.n for k in range(i - 1, (j if j >= i else j + self.n))]
-        vectors = []
-        for s in range(len(idx) + 1):
-            for combo in itertools.combinations(idx, s):
-                p = DualQuaternion.scalar(1.0 if self.data == "float" else sympy.Integer(1))
-                for k in combo:
-                    p = p * self.axes[k]
-                vectors.append(list(p))
+        vectors = [list(p) for p in coupling_space([self.axes[k] for k in idx])]
         if self.data != "float":
             return sympy.Matrix(vectors).rank(simplify=True)
         return int(np.linalg.matrix_rank(np.array(vectors, dtype=float), tol=1e-9))
@@ -608,6 +651,32 @@ def connection_numbers(d: np.ndarray) -> dict[tuple[int, int], int]:
             if k:
                 out[(i, j)] = int(k)
     return out
+
+
+def distances_from_connections(n: int, connections: dict[tuple[int, int], int]) -> np.ndarray:
+    """The distance matrix read off a bond diagram ([HSS] Theorem 23).
+
+    Cutting the diagram at the links ``o_i`` and ``o_j`` leaves the joints
+    ``h_{i+1}, ..., h_j`` on one side and the others on the other; ``d(i, j)`` is the
+    number of connections drawn between the two sides (dashed ones, negative
+    entries of ``connections``, counted negatively).  ``connections`` is keyed
+    ``(i, j)``, ``1 <= i < j <= n``, as :meth:`RevoluteChain.connections` returns it.
+    """
+    if not isinstance(n, (int, np.integer)) or n < 3:
+        raise ValueError(f"n must be an integer >= 3; got {n!r}")
+    for (a, b), k in connections.items():
+        if not (1 <= a < b <= n) or not isinstance(k, (int, np.integer)):
+            raise ValueError(f"connections must map pairs 1 <= i < j <= {n} to integers; got {(a, b)}: {k!r}")
+    d = np.zeros((n, n), dtype=int)
+    for i in range(1, n + 1):
+        for j in range(i + 1, n + 1):
+            side = set(range(i + 1, j + 1))
+            d[i - 1, j - 1] = d[j - 1, i - 1] = sum(k for (a, b), k in connections.items() if (a in side) != (b in side))
+    return d
+
+
+def _joint_inf(t: Any) -> bool:
+    return isinstance(t, (float, complex)) and bool(np.isinf(abs(t)))
 
 
 def _angle_of(t: float) -> float:

@@ -19,7 +19,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
-__all__ = ["DualNumber", "DualQuaternion"]
+import sympy
+
+__all__ = ["DualNumber", "DualQuaternion", "FLOAT_TOL", "is_inexact"]
+
+#: Zero test of the motion-type predicates for float coefficients, relative to the largest
+#: coefficient (exact coefficients are tested exactly).
+FLOAT_TOL = 1e-12
 
 
 class DualNumber(NamedTuple):
@@ -204,6 +210,49 @@ class DualQuaternion:
         """``Q(h) = h0^2 + h1^2 + h2^2 + h3^2``, the primal part of ``N(h)``."""
         return self.norm().primal
 
+    def trace(self) -> DualNumber:
+        """``h + conj(h) = 2 h0 + eps 2 h4``: twice the scalar part, a dual number."""
+        c = self._c
+        return DualNumber(2 * c[0], 2 * c[4])
+
+    def in_exceptional_space(self) -> bool:
+        """``h`` lies in the exceptional 3-space ``E``: its primal part is zero.
+
+        [HSS] Section 1: ``E`` (projectively a 3-space in ``P^7``) lies in the Study
+        quadric ``S``; ``S - E`` is the group ``SE(3)``.  Coefficients are compared
+        with zero exactly, floats to ``FLOAT_TOL`` times the largest coefficient.
+        """
+        return all(_negligible(x, self._c) for x in self._c[:4])
+
+    def is_rotation(self) -> bool:
+        """``h`` represents a rotation ([HSS] Section 1).
+
+        A nonzero dual quaternion represents a rotation if and only if its norm
+        and its trace are *strictly real* (their dual parts vanish) and its primal
+        vectorial part is nonzero.  Points of ``E`` (zero primal part) are no
+        displacements and give ``False``.
+        """
+        return self._norm_and_trace_real() and not all(_negligible(x, self._c) for x in self._c[1:4])
+
+    def is_translation(self) -> bool:
+        """``h`` represents a translation (the identity included) ([HSS] Section 1).
+
+        A nonzero dual quaternion represents a translation if and only if its
+        norm and its trace are strictly real and its primal vectorial part is zero;
+        then ``h`` is proportional to ``1 + eps v`` with ``v`` vectorial, the
+        translation by ``-2 v``.
+        """
+        return self._norm_and_trace_real() and all(_negligible(x, self._c) for x in self._c[1:4])
+
+    def _norm_and_trace_real(self) -> bool:
+        if all(_negligible(x, self._c) for x in self._c):
+            raise ValueError("the zero dual quaternion represents no displacement")
+        if self.in_exceptional_space():
+            return False
+        return _negligible(self.study_condition(), [x * y for x in self._c for y in self._c]) and _negligible(
+            self._c[4], self._c
+        )
+
     def study_condition(self) -> Any:
         """``h0 h4 + h1 h5 + h2 h6 + h3 h7``: zero iff ``h`` lies on the Study quadric."""
         c = self._c
@@ -249,6 +298,21 @@ class DualQuaternion:
         names = ("", "i", "j", "k", "eps", "eps*i", "eps*j", "eps*k")
         terms = [f"({c})" + (f"*{n}" if n else "") for c, n in zip(self._c, names) if not _is_literal_zero(c)]
         return "DualQuaternion(" + (" + ".join(terms) if terms else "0") + ")"
+
+
+def is_inexact(x: Any) -> bool:
+    """``x`` is a rounded number: a Python, numpy or mpmath float, or a sympy expression with a Float."""
+    if isinstance(x, (float, complex)) or type(x).__module__.startswith(("numpy", "mpmath")):
+        return True
+    has = getattr(x, "has", None)
+    return has is not None and bool(has(sympy.Float))
+
+
+def _negligible(x: Any, scale: Sequence[Any]) -> bool:
+    """``x`` is zero: exactly for exact numbers, to ``FLOAT_TOL * max |scale|`` for rounded ones."""
+    if is_inexact(x) or any(is_inexact(y) for y in scale):
+        return abs(complex(x)) <= FLOAT_TOL * max(abs(complex(y)) for y in scale)
+    return bool(sympy.simplify(x) == 0)
 
 
 def _is_literal_zero(x: Any) -> bool:
