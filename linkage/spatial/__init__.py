@@ -5,9 +5,11 @@ Analysis of Linkages".  Imports neither ``charts`` nor the planar chain model;
 matplotlib only inside the drawing functions.  See ``linkage/spatial/README.md``.
 """
 
-from .chain import Bond, RevoluteChain, connection_numbers, motion_factorization
+from .chain import Bond, RevoluteChain, connection_numbers, distances_from_connections, motion_factorization
 from .curve import ConfigurationCurve, Place
 from .dualquat import DualNumber, DualQuaternion
+from .elimination import RigidLinkageError
+from .goldberg import bennett_linkage, goldberg
 
 __all__ = [
     "Bond",
@@ -16,6 +18,10 @@ __all__ = [
     "DualQuaternion",
     "Place",
     "RevoluteChain",
+    "RigidLinkageError",
+    "bennett_linkage",
     "connection_numbers",
+    "distances_from_connections",
+    "goldberg",
     "motion_factorization",
 ]

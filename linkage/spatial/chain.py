@@ -23,9 +23,10 @@ import sympy
 from .curve import INF, T, W, ConfigurationCurve, Place, to_mpc
 from .coupling import coupling_space, pose_product
 from .dualquat import DualQuaternion
+from .elimination import RigidLinkageError, candidate_curves_5r
 from .series import WORKING_DIGITS, PrecisionExhausted, Series
 
-__all__ = ["Bond", "RevoluteChain", "distances_from_connections", "motion_factorization"]
+__all__ = ["Bond", "RevoluteChain", "RigidLinkageError", "distances_from_connections", "motion_factorization"]
 
 #: Tolerance of the unit-line test for float axes (exact axes are tested exactly).
 AXIS_TOL = 1e-10
@@ -263,10 +264,10 @@ class RevoluteChain:
 
     # configuration curve ----------------------------------------------------------
     def configuration_curve(self) -> ConfigurationCurve:
-        """The configuration curve with parameter ``t = t_n`` (the last joint).
+        """The configuration curve, by exact elimination for ``n = 4`` and ``n = 5``.
 
-        For ``n = 4`` it is found by elimination ([HSS] eqs. 7, 12, 13): closure
-        means ``Z = (t_1 + h_1)(t_4 + h_4)`` is proportional to
+        ``n = 4`` (parameter ``t = t_4``, [HSS] eqs. 7, 12, 13): closure means
+        ``Z = (t_1 + h_1)(t_4 + h_4)`` is proportional to
         ``(t_2 - h_2)(t_3 - h_3) = t_2 t_3 - t_3 h_2 - t_2 h_3 + h_2 h_3``.  So ``Z`` lies
         in the coupling space ``L_23 = span(1, h_2, h_3, h_2 h_3)`` (linear in ``Z``)
         and its coordinates ``alpha`` there satisfy ``alpha_0 alpha_3 = alpha_1 alpha_2``.
@@ -274,32 +275,133 @@ class RevoluteChain:
         quadratic in ``t_1`` (``w`` = square root of its discriminant); then
         ``t_2 = -alpha_2 / alpha_3`` and ``t_3 = -alpha_1 / alpha_3``.
 
-        Exact (rational) axes are required.  For ``n > 4`` pass ``curve=`` to the
+        ``n = 5`` (parameter ``t = t_5``): the same with the coupling space ``L_12``,
+        see :mod:`linkage.spatial.elimination`; every candidate component is
+        checked against the closure condition exactly.
+
+        Exact (rational) axes are required.  For ``n > 5`` pass ``curve=`` to the
         constructor (e.g. from :func:`motion_factorization`).
 
         Raises
         ------
+        RigidLinkageError
+            (a ``ValueError``) If the chain is rigid: no curve component (``n = 4, 5``),
+            or, for any ``n``, the home pose is an isolated configuration
+            (:meth:`is_mobile`).
         ValueError
-            If the chain is rigid (no curve) or the curve is reducible, including
-            a moving component on which joint 1 or joint n is fixed (only
-            components with such a joint at ``+-I``, where the product has zero
-            norm, are dropped).
+            If the curve is reducible, including a moving component on which a
+            parameter joint is fixed (only components with such a joint at
+            ``+-I``, where the product has zero norm, are dropped).
         NotImplementedError
-            For ``n > 4`` without a given curve, or float axes.
+            For ``n > 5`` without a given curve, or float axes.
         """
         if self._curve is not None:
             return self._curve
-        if self.n != 4:
+        if self.home_is_isolated():
+            raise RigidLinkageError(
+                f"the chain is rigid: the {self.n} joint screws at the home pose are linearly independent, "
+                "so the home pose is an isolated configuration"
+            )
+        if self.n > 5:
             raise NotImplementedError(
-                f"configuration curves by elimination are implemented for n = 4; got n = {self.n}: "
+                f"configuration curves by elimination are implemented for n = 4 and 5; got n = {self.n}: "
                 "pass curve= (e.g. built by motion polynomial factorisation)"
             )
         if not self.exact:
             raise NotImplementedError(
                 f"elimination needs rational axes (these are {self.data}); pass curve= to the constructor"
             )
-        self._curve = self._eliminate_4r()
+        self._curve = self._eliminate_4r() if self.n == 4 else self._eliminate_5r()
         return self._curve
+
+    def _eliminate_5r(self) -> ConfigurationCurve:
+        comps = []
+        for curve in candidate_curves_5r(self.axes):
+            try:
+                self._check_closure_identically(curve)
+            except ValueError:
+                continue
+            comps.append(curve)
+        if not comps:
+            raise RigidLinkageError("the chain is rigid: the closure equations have no common curve component")
+        if len(comps) > 1:
+            raise ValueError(
+                f"the configuration curve is reducible ({len(comps)} components): "
+                f"{[c.expressions() for c in comps]}; pass curve= with one component to analyse it alone"
+            )
+        return comps[0]
+
+    def joint_screws(self) -> np.ndarray | sympy.Matrix:
+        """The ``6 x n`` Jacobian of the closure map at the home pose (all ``t_k = inf``).
+
+        Column ``k`` is the screw of axis ``h_k``: its primal and dual vector parts
+        (direction and negative moment).  Near the home pose a joint turned by a small
+        angle ``phi`` moves the last link by ``-phi/2 h_k`` to first order; so the chain
+        can leave the home pose only along the kernel of this matrix.  Exact for exact
+        axes (a sympy ``Matrix``), float otherwise.
+        """
+        rows = [[h[c] for h in self.axes] for c in (1, 2, 3, 5, 6, 7)]
+        return np.array(rows, dtype=float) if self.data == "float" else sympy.Matrix(rows)
+
+    def home_is_isolated(self) -> bool:
+        """The home pose is an isolated configuration: the joint screws are independent.
+
+        Then ``rank J = n`` (``n <= 6``), the closure map is an immersion at the home
+        pose, and no curve of configurations passes through it.  Exact rank for exact
+        axes; for float axes the smallest singular value must exceed ``1e-8`` times the
+        largest, and an ambiguous one raises ``ArithmeticError``.
+        """
+        j = self.joint_screws()
+        if self.n > 6:
+            return False
+        if isinstance(j, np.ndarray):
+            s = np.linalg.svd(j, compute_uv=False)
+            if 1e-12 * s[0] < s[-1] <= 1e-8 * s[0]:
+                raise ArithmeticError(
+                    f"the joint screws are nearly dependent (singular values {s}): rounded axes cannot "
+                    "tell an isolated home pose from a mobile one; give exact axes"
+                )
+            return bool(s[-1] > 1e-8 * s[0])
+        return j.rank(simplify=True) == self.n
+
+    def is_mobile(self) -> bool:
+        """The chain moves: its configuration set contains a curve.
+
+        Decided, in this order: a given or computed curve means mobile; independent
+        joint screws at the home pose (:meth:`home_is_isolated`) mean that the assembled
+        chain cannot move (``False``); six independent screws and ``n = 7`` mean a smooth
+        curve through the home pose (``True``); for ``n = 4, 5`` with rational axes the
+        exact elimination of :meth:`configuration_curve` decides (a reducible curve is
+        mobile too).
+
+        Raises
+        ------
+        NotImplementedError
+            When none of these applies (``n = 6`` with dependent screws and no curve,
+            or float axes with dependent screws).
+        """
+        if self._curve is not None:
+            return True
+        if self.home_is_isolated():
+            return False
+        screws = self.joint_screws()
+        rank = int(np.linalg.matrix_rank(screws)) if isinstance(screws, np.ndarray) else screws.rank(simplify=True)
+        if self.n == 7 and rank == 6:
+            return True
+        if self.n in (4, 5) and self.exact:
+            try:
+                self.configuration_curve()
+            except RigidLinkageError:
+                return False
+            except ValueError as err:
+                if "reducible" in str(err) or "component" in str(err):
+                    return True
+                raise
+            return True
+        raise NotImplementedError(
+            f"mobility of this {self.n}R chain ({self.data} axes, dependent joint screws at the home pose) "
+            "is decided only by a configuration curve: pass curve= or give a 4R/5R chain rational axes"
+        )
 
     def _eliminate_4r(self) -> ConfigurationCurve:
         h1, h2, h3, h4 = self.axes
@@ -340,7 +442,7 @@ class RevoluteChain:
                 "the parameter t = t_n.  Pass curve= with one component to analyse that component alone"
             )
         if not comps:
-            raise ValueError("the chain is rigid: the closure equations have no common curve component")
+            raise RigidLinkageError("the chain is rigid: the closure equations have no common curve component")
         if len(comps) > 1:
             raise ValueError(f"the configuration curve is reducible ({len(comps)} components): {comps}")
         poly = sympy.Poly(comps[0], x)
