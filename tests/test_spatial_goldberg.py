@@ -19,7 +19,7 @@ from sympy import Rational as R
 from linkage.spatial import DualQuaternion, RevoluteChain
 from linkage.spatial.chain import RigidLinkageError, distances_from_connections
 from linkage.spatial.elimination import candidate_curves_5r
-from linkage.spatial.goldberg import bennett_linkage, goldberg
+from linkage.spatial.synthesis import bennett_linkage, goldberg
 
 # eq. (18), the Goldberg linkage (Figure 1(c) numbering)
 D18 = np.array([[0, 1, 2, 3, 2], [1, 0, 1, 2, 3], [2, 1, 0, 1, 2], [3, 2, 1, 0, 1], [2, 3, 2, 1, 0]])

@@ -9,10 +9,12 @@ from .chain import Bond, RevoluteChain, connection_numbers, distances_from_conne
 from .curve import ConfigurationCurve, Place
 from .dualquat import DualNumber, DualQuaternion
 from .elimination import RigidLinkageError
-from .goldberg import bennett_linkage, goldberg
+from .factorization import MotionFactorizationError
+from .synthesis import bennett_linkage, goldberg, linkage_from_factorizations
 
 __all__ = [
     "Bond",
+    "MotionFactorizationError",
     "ConfigurationCurve",
     "DualNumber",
     "DualQuaternion",
@@ -23,5 +25,6 @@ __all__ = [
     "connection_numbers",
     "distances_from_connections",
     "goldberg",
+    "linkage_from_factorizations",
     "motion_factorization",
 ]

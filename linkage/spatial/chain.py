@@ -24,6 +24,7 @@ from .curve import INF, T, W, ConfigurationCurve, Place, to_mpc
 from .coupling import coupling_space, pose_product
 from .dualquat import DualQuaternion
 from .elimination import RigidLinkageError, candidate_curves_5r
+from .factorization import motion_factorization
 from .series import WORKING_DIGITS, PrecisionExhausted, Series
 
 __all__ = ["Bond", "RevoluteChain", "RigidLinkageError", "distances_from_connections", "motion_factorization"]
@@ -853,31 +854,3 @@ def _exact_min_order(h: DualQuaternion, degree: int, m) -> int:
 def _max_abs_coeff(e: Any) -> float:
     poly = sympy.Poly(e, T, W) if e != 0 else None
     return 0.0 if poly is None else max(abs(complex(c)) for c in poly.coeffs())
-
-
-def motion_factorization(polynomial: Sequence[DualQuaternion], right_norm: Sequence[Any]) -> tuple:
-    """Factor a monic quadratic motion polynomial ``P = t^2 + p1 t + p0`` as ``(t - g1)(t - g2)``.
-
-    Parameters
-    ----------
-    polynomial
-        ``(p0, p1)``, the dual quaternion coefficients of ``P(t) = t^2 + p1 t + p0``.
-    right_norm
-        ``(m0, m1)``: the real monic quadratic factor ``M = t^2 + m1 t + m0`` of the
-        norm polynomial ``P conj(P)`` that ``N(t - g2)`` must equal.
-
-    Returns
-    -------
-    (g1, g2)
-        With ``P = (t - g1)(t - g2)``: ``P - M = r1 t + r0`` is a left multiple of
-        ``t - g2``, so ``g2 = -r1^-1 r0``, and ``g1 = -p1 - g2``
-        (Hegedüs, Schicho, Schröcker, factorisation of motion polynomials; [HSS] Example 11).
-    """
-    p0, p1 = polynomial
-    m0, m1 = right_norm
-    r1, r0 = p1 - m1, p0 - m0
-    g2 = -(r1.inverse() * r0)
-    g1 = -p1 - g2
-    if any(sympy.simplify(x - y) != 0 for x, y in zip(g1 * g2, p0)):
-        raise ValueError("right_norm is not a factor of the norm polynomial: no such factorisation")
-    return g1, g2

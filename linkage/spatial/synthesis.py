@@ -1,5 +1,14 @@
-"""Bennett linkages by factorisation and Goldberg's 5R linkage composed from two of them.
+"""Mobile chains built from motion polynomials: Bennett and 2d-R linkages, Goldberg's 5R.
 
+*Factorisation linkages* (refs. [8, 10] of [HSS]): a motion polynomial ``C`` of degree
+``d`` factors as ``(t - g_1) ... (t - g_d)`` for every ordering of its norm's quadratic
+factors.  Two factorisations ``C = (t - g_1)...(t - g_d) = (t - k_1)...(t - k_d)`` close a
+chain: ``C conj(C)`` is real, and ``conj(t - k) = (t - c) + h`` for ``k = c + r h``
+(``h`` a unit line), so the ``2d`` axes ``(h_{g_1}, ..., h_{g_d}, h_{k_d}, ..., h_{k_1})``
+move with the joint values ``((t - c_{g_1})/r_{g_1}, ..., (c_{k_1} - t)/r_{k_1})``: a
+Bennett linkage for ``d = 2``, a 6R linkage for ``d = 3``.
+
+*Goldberg's 5R linkage*.
 [HSS] Section 4: every non-degenerate closed 5R linkage is a *Goldberg linkage*: two
 Bennett linkages ``(h_1, h_2, h_3, h_6)`` and ``(h_3, h_4, h_5, h_6)`` that share the
 link carrying the axes ``h_3`` and ``h_6`` are composed, and the joint at ``h_6`` is
@@ -21,35 +30,72 @@ from typing import Any
 
 import sympy
 
-from .chain import RevoluteChain, motion_factorization
+from collections.abc import Sequence
+
+from .chain import RevoluteChain
 from .curve import T, ConfigurationCurve
 from .dualquat import DualQuaternion
+from .factorization import motion_factorization, polynomial_product
 
-__all__ = ["bennett_linkage", "goldberg"]
+__all__ = ["bennett_linkage", "goldberg", "linkage_from_factorizations"]
+
+
+def linkage_from_factorizations(
+    factors: Sequence[DualQuaternion], norm_factors: Sequence[Sequence[Any]]
+) -> RevoluteChain:
+    """The closed ``2d``-R chain of two factorisations of one motion polynomial.
+
+    Parameters
+    ----------
+    factors
+        ``(g_1, ..., g_d)``, rotation quaternions: ``C = (t - g_1) ... (t - g_d)``.
+    norm_factors
+        The ordering ``[(m0_1, m1_1), ..., (m0_d, m1_d)]`` of the second factorisation
+        ``C = (t - k_1) ... (t - k_d)``, ``N(t - k_j) = t^2 + m1_j t + m0_j`` (see
+        :func:`motion_factorization`).
+
+    Returns
+    -------
+    RevoluteChain
+        Axes ``(h_{g_1}, ..., h_{g_d}, h_{k_d}, ..., h_{k_1})`` with the rational curve of
+        the module docstring (checked against the closure condition exactly by the
+        constructor).
+    """
+    one = DualQuaternion.scalar(sympy.Integer(1), sympy.Integer(0))
+    polynomial = polynomial_product(*[[-g, one] for g in factors])
+    ks = motion_factorization(polynomial[:-1], norm_factors=norm_factors)
+    axes, joints = [], []
+    for g, sign in [(g, 1) for g in factors] + [(k, -1) for k in reversed(ks)]:
+        c = g[0]
+        r = sympy.sqrt(sympy.nsimplify(g.quadratic_form() - c * c))  # N(t - g) = (t - c)^2 + r^2
+        if r == 0:
+            raise ValueError(f"factor {g} is not a rotation (its vector part has zero norm)")
+        axes.append(((g - c) * (1 / r)).map(sympy.simplify))
+        joints.append(sign * (T - c) / r)
+    return RevoluteChain(axes, curve=ConfigurationCurve.rational(joints))
 
 
 def bennett_linkage(h1: DualQuaternion, h2: DualQuaternion, offset: Any) -> RevoluteChain:
     """The Bennett linkage ``(h_1, h_2, h_3, h_4)`` with two given consecutive axes.
 
-    Factorises the quadratic motion polynomial ``(t - h_1)(t - offset - h_2)`` the other
-    way round, ``(t - offset - k_1)(t - k_2)`` with ``N(t - k_2) = t^2 + 1`` ([HSS]
-    Example 11, refs. [8, 10]); then ``(t - h_1)(t - offset - h_2)`` times the conjugate
-    of ``(t - offset - k_1)(t - k_2)`` is real, the closure of the chain
-    ``(h_1, h_2, -k_2, -k_1)`` at ``(t, t - offset, -t, offset - t)``.  Every Bennett
-    linkage through the link ``(h_1, h_2)`` arises for one real ``offset != 0``.
+    The factorisation linkage (:func:`linkage_from_factorizations`) of
+    ``(t - h_1)(t - offset - h_2)`` with the norm factors swapped: the second
+    factorisation is ``(t - offset - k_1)(t - k_2)``, and the chain is
+    ``(h_1, h_2, -k_2, -k_1)`` with joint values ``(t, t - offset, -t, offset - t)``.
+    Every Bennett linkage through the link ``(h_1, h_2)`` arises for one real
+    ``offset != 0``.
 
     Raises
     ------
     ValueError
-        If ``offset`` is zero (the factorisation is then the trivial one) or the two axes
-        are concurrent (a planar or spherical pair admits no Bennett linkage).
+        If ``offset`` is zero (the factorisation is then the trivial one) or the
+        factorisation is non-generic (e.g. concurrent axes).
     """
     if offset == 0:
         raise ValueError("offset must be a nonzero real number (offset 0 gives back the same factors)")
+    c = sympy.nsimplify(offset)
     one = DualQuaternion.scalar(sympy.Integer(1), sympy.Integer(0))
-    c = sympy.nsimplify(offset) if not isinstance(offset, float) else offset
-    g1, k2 = motion_factorization((h1 * (c * one + h2), -(h1 + c * one + h2)), (1, 0))
-    return RevoluteChain([h1, h2, -k2, -(g1 - c * one)])
+    return linkage_from_factorizations([h1, c * one + h2], [(c * c + 1, -2 * c), (1, 0)])
 
 
 def goldberg(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> RevoluteChain:
