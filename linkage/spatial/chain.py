@@ -23,7 +23,7 @@ import sympy
 from .curve import INF, T, W, ConfigurationCurve, Place, to_mpc
 from .coupling import coupling_space, pose_product
 from .dualquat import DualQuaternion
-from .elimination import RigidLinkageError, candidate_curves_5r
+from .elimination import RigidLinkageError, candidate_curves_5r, candidate_curves_6r
 from .factorization import motion_factorization
 from .series import WORKING_DIGITS, PrecisionExhausted, Series
 
@@ -276,11 +276,12 @@ class RevoluteChain:
         quadratic in ``t_1`` (``w`` = square root of its discriminant); then
         ``t_2 = -alpha_2 / alpha_3`` and ``t_3 = -alpha_1 / alpha_3``.
 
-        ``n = 5`` (parameter ``t = t_5``): the same with the coupling space ``L_12``,
-        see :mod:`linkage.spatial.elimination`; every candidate component is
-        checked against the closure condition exactly.
+        ``n = 5`` (parameter ``t = t_5``) and ``n = 6`` (parameter ``t_6``, or ``t_5``
+        when the component is a double cover of the ``t_5`` line only): the coupling
+        equality with ``L_12``, see :mod:`linkage.spatial.elimination`; every
+        candidate component is checked against the closure condition exactly.
 
-        Exact (rational) axes are required.  For ``n > 5`` pass ``curve=`` to the
+        Exact (rational) axes are required.  For ``n = 7`` pass ``curve=`` to the
         constructor (e.g. from :func:`motion_factorization`).
 
         Raises
@@ -294,7 +295,8 @@ class RevoluteChain:
             parameter joint is fixed (only components with such a joint at
             ``+-I``, where the product has zero norm, are dropped).
         NotImplementedError
-            For ``n > 5`` without a given curve, or float axes.
+            For ``n = 7`` without a given curve, float axes, or a 6R component that is
+            a double cover of neither the ``t_5`` nor the ``t_6`` line.
         """
         if self._curve is not None:
             return self._curve
@@ -303,21 +305,25 @@ class RevoluteChain:
                 f"the chain is rigid: the {self.n} joint screws at the home pose are linearly independent, "
                 "so the home pose is an isolated configuration"
             )
-        if self.n > 5:
+        if self.n > 6:
             raise NotImplementedError(
-                f"configuration curves by elimination are implemented for n = 4 and 5; got n = {self.n}: "
+                f"configuration curves by elimination are implemented for n = 4, 5, 6; got n = {self.n}: "
                 "pass curve= (e.g. built by motion polynomial factorisation)"
             )
         if not self.exact:
             raise NotImplementedError(
                 f"elimination needs rational axes (these are {self.data}); pass curve= to the constructor"
             )
-        self._curve = self._eliminate_4r() if self.n == 4 else self._eliminate_5r()
+        if self.n == 4:
+            self._curve = self._eliminate_4r()
+        else:
+            self._curve = self._closing_component(candidate_curves_5r if self.n == 5 else candidate_curves_6r)
         return self._curve
 
-    def _eliminate_5r(self) -> ConfigurationCurve:
+    def _closing_component(self, candidates: Callable[..., list[ConfigurationCurve]]) -> ConfigurationCurve:
+        """The one candidate curve that satisfies the closure condition identically."""
         comps = []
-        for curve in candidate_curves_5r(self.axes):
+        for curve in candidates(self.axes):
             try:
                 self._check_closure_identically(curve)
             except ValueError:
@@ -372,14 +378,14 @@ class RevoluteChain:
         joint screws at the home pose (:meth:`home_is_isolated`) mean that the assembled
         chain cannot move (``False``); six independent screws and ``n = 7`` mean a smooth
         curve through the home pose (``True``); for ``n = 4, 5`` with rational axes the
-        exact elimination of :meth:`configuration_curve` decides (a reducible curve is
-        mobile too).
+        exact elimination of :meth:`configuration_curve` decides for ``n = 4, 5, 6`` with
+        rational axes (a reducible curve is mobile too).
 
         Raises
         ------
         NotImplementedError
-            When none of these applies (``n = 6`` with dependent screws and no curve,
-            or float axes with dependent screws).
+            When none of these applies (float axes with dependent screws, or an
+            elimination that cannot represent the curve).
         """
         if self._curve is not None:
             return True
@@ -389,7 +395,7 @@ class RevoluteChain:
         rank = int(np.linalg.matrix_rank(screws)) if isinstance(screws, np.ndarray) else screws.rank(simplify=True)
         if self.n == 7 and rank == 6:
             return True
-        if self.n in (4, 5) and self.exact:
+        if self.n in (4, 5, 6) and self.exact:
             try:
                 self.configuration_curve()
             except RigidLinkageError:

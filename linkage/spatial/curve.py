@@ -25,6 +25,7 @@ of being read as ``t_k = 0/0``.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -189,6 +190,18 @@ class ConfigurationCurve:
         """True for a rational curve (no square root ``w = sqrt(g(t))``)."""
         return self.g is None
 
+    @property
+    def genus(self) -> int:
+        """The genus of the model ``w^2 = g(t)``: ``0`` if rational, else ``(deg g - 1) // 2``.
+
+        ``g`` is squarefree, so ``w^2 = g(t)`` is a smooth hyperelliptic model of genus
+        ``ceil(deg g / 2) - 1``.  It is the genus of the configuration curve when ``t``
+        and ``w`` are rational functions of the joint values, as for the curves computed
+        by elimination: ``t`` is a joint, and ``w = (c_k t_k - a_k) / b_k`` for a joint
+        with ``b_k != 0``.
+        """
+        return 0 if self.g is None else (self.g.degree() - 1) // 2
+
     def expressions(self) -> tuple:
         """The joint coordinates as sympy expressions in ``t`` (and ``w``)."""
         return tuple(
@@ -210,6 +223,32 @@ class ConfigurationCurve:
             num, den = _eval(a, t) + _eval(b, t) * w, _eval(c, t)
             out.append(INF if den == 0 and num != 0 else (complex("nan") if den == 0 else num / den))
         return tuple(out)
+
+    def real_intervals(self) -> list[tuple[float, float]]:
+        """Parameter intervals over which the curve is real: ``g(t) >= 0`` (all of R if rational).
+
+        Endpoints are the real roots of ``g`` (floats, ``+-inf`` for unbounded intervals).
+        Over each interval the two branches ``w = +-sqrt(g)`` join at the roots, so every
+        real component of the curve is traced by both branches over one or more of
+        these intervals.
+        """
+        if self.g is None:
+            return [(-float("inf"), float("inf"))]
+        roots = sorted(float(r) for r in sympy.real_roots(self.g))
+        edges = [-float("inf"), *roots, float("inf")]
+        out = []
+        for a, b in zip(edges[:-1], edges[1:]):
+            if math.isinf(a) and math.isinf(b):
+                mid = 0.0
+            elif math.isinf(a):
+                mid = b - 1
+            elif math.isinf(b):
+                mid = a + 1
+            else:
+                mid = (a + b) / 2
+            if float(_eval(self.g, mid).real) > 0:
+                out.append((a, b))
+        return out
 
     def real_points(self, ts: Sequence[float], branch: int = 1) -> list:
         """Joint tuples at the real parameters ``ts`` where ``g(t) >= 0`` (all of them if rational)."""

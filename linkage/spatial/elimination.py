@@ -27,7 +27,7 @@ import sympy
 from .curve import T, W, ConfigurationCurve
 from .dualquat import DualQuaternion
 
-__all__ = ["RigidLinkageError", "candidate_curves_5r"]
+__all__ = ["RigidLinkageError", "candidate_curves_5r", "candidate_curves_6r"]
 
 
 class RigidLinkageError(ValueError):
@@ -99,3 +99,172 @@ def candidate_curves_5r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
         except (ValueError, ZeroDivisionError):
             continue  # a degenerate formula on a spurious factor
     return curves
+
+
+def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCurve]:
+    """Curve candidates of a closed 6R chain with rational axes, parameter ``t_6`` or ``t_5``.
+
+    The closure is the coupling equality ``(t_1 - h_1)(t_2 - h_2)(t_3 - h_3) ~ Z`` with
+    ``Z = (t_6 + h_6)(t_5 + h_5)(t_4 + h_4)``.  Writing ``U = (t_6 + h_6)(t_5 + h_5)``,
+
+        Z (t_3 + h_3) = U t_4 t_3 + U h_4 t_3 + U h_3 t_4 + U h_4 h_3
+
+    must lie in ``L_12``: with ``N`` (4 x 8) the equations of ``L_12``, the 4 x 4 matrix
+    ``M = N [U, U h_4, U h_3, U h_4 h_3]`` (entries bilinear in ``t_5, t_6``) has the null
+    vector ``(t_3 t_4, t_3, t_4, 1)``, so ``det M = 0``: a polynomial of bidegree at most
+    ``(4, 4)`` whose factors over Q hold the projections of all curve components to the
+    ``(t_5, t_6)`` plane.  A factor of degree at most 2 in one of the two variables is
+    parametrised by the other (``w`` = square root of the discriminant when the degree
+    is 2); the null vector (a column of the adjugate) gives ``t_3, t_4``, and the
+    coordinates of ``Z (t_3 + h_3)`` in ``L_12`` give ``t_1, t_2``.  Candidates must still
+    pass the exact closure check.
+
+    Raises
+    ------
+    NotImplementedError
+        For a factor of degree above 2 in both ``t_5`` and ``t_6`` (not a double cover
+        of either line).
+    """
+    h1, h2, h3, h4, h5, h6 = axes
+    x, y = sympy.symbols("x y")  # t_5, t_6
+    one = sympy.Integer(1)
+    basis = sympy.Matrix([list(v) for v in (DualQuaternion.scalar(one), h1, h2, h1 * h2)]).T
+    if basis.rank() != 4:
+        raise ValueError("axes 1 and 2 span less than a 4-dimensional coupling space (equal lines?)")
+    normals = sympy.Matrix.hstack(*basis.T.nullspace()).T  # 4 x 8: N v = 0 iff v in L_12
+    coords = (basis.T * basis).inv() * basis.T
+    u = ((y + h6) * (x + h5)).map(sympy.expand)
+    cols = [u, u * h4, u * h3, u * h4 * h3]
+    m = (normals * sympy.Matrix([list(c.map(sympy.expand)) for c in cols]).T).applyfunc(sympy.expand)
+    det = sympy.expand(m.det(method="berkowitz"))
+    if det == 0:
+        raise ValueError("det M vanishes identically: a degenerate 6R chain (axes 1, 2 or 4, 5, 6 special)")
+    curves = []
+    for f, _ in sympy.factor_list(det, x, y)[1]:
+        dx, dy = sympy.degree(f, x), sympy.degree(f, y)
+        if dx == 0 or dy == 0:
+            continue  # joint 5 or 6 fixed: t^2 + 1, or a component the closure check cannot take whole
+        if min(dx, dy) > 2:
+            raise NotImplementedError(
+                f"a component of degree {dx} in t_5 and {dy} in t_6: not a double cover of either joint's line; "
+                "pass curve= with a parametrisation"
+            )
+        solved, param = (x, y) if dx <= dy else (y, x)
+        poly = sympy.Poly(f.subs(param, T), solved)
+        if poly.degree() == 1:
+            c1, c0 = poly.all_coeffs()
+            num, den, g0 = -c0, c1, None  # solved = num / den
+        else:
+            ca, cb, cc = poly.all_coeffs()
+            s, g0 = _square_free(sympy.expand(cb**2 - 4 * ca * cc))
+            num, den = -cb + s * W, 2 * ca  # solved = (-b + sqrt(disc)) / (2a), sqrt(disc) = s w
+        field = _QuadraticField(g0)
+        # the null vector of M: a column of the adjugate, polynomials in (x, y) first
+        adjugate = m.adjugate(method="berkowitz")
+        column = next((adjugate.col(k) for k in range(4) if not _vanishes_on(adjugate.col(k), f, x, y)), None)
+        if column is None:
+            continue
+        v = field.homogenised(list(column), solved, param, num, den)
+        t3, t4 = field.ratio(v[1], v[3]), field.ratio(v[2], v[3])
+        # Z (t_3 + h_3) with every t_k = n_k / d_k replaced by n_k + d_k h_k (a projective point)
+        pair5 = (T, one) if solved == y else (num, den)
+        pair6 = (T, one) if solved == x else (num, den)
+        z = DualQuaternion.scalar(field.poly(1), field.poly(0))
+        for n_, d_, h in ((pair6[0], pair6[1], h6), (pair5[0], pair5[1], h5), (v[2], v[3], h4), (v[1], v[3], h3)):
+            n_, d_ = field.poly(n_), field.poly(d_)
+            factor = DualQuaternion([n_ if k == 0 else field.poly(0) for k in range(8)]) + h.map(field.poly) * d_
+            z = (z * factor).map(field.reduce)
+        alpha = [sum((coords[r, c] * z[c] for c in range(8)), field.poly(0)) for r in range(4)]
+        t1, t2 = field.ratio(-alpha[2], alpha[3]), field.ratio(-alpha[1], alpha[3])
+        t5 = (T, one) if solved == y else field.ratio(num, den)
+        t6 = (T, one) if solved == x else field.ratio(num, den)
+        joints = [t1, t2, t3, t4, t5, t6]
+        try:
+            curves.append(field.curve(joints))
+        except (ValueError, ZeroDivisionError):
+            continue
+    return curves
+
+
+def _vanishes_on(column: sympy.Matrix, f, x, y) -> bool:
+    """Every entry of ``column`` is divisible by the irreducible ``f``."""
+    return all(sympy.rem(sympy.Poly(e, x, y), sympy.Poly(f, x, y)).is_zero for e in column)
+
+
+def _square_free(g):
+    """``(s, g0)`` with ``g = s^2 g0``, ``g0`` squarefree."""
+    content, factors = sympy.sqf_list(g, T)
+    s, g0 = sympy.Integer(1), sympy.Integer(content)
+    for fac, mult in factors:
+        s *= fac ** (mult // 2)
+        g0 *= fac ** (mult % 2)
+    return sympy.expand(s), sympy.expand(g0)
+
+
+class _QuadraticField:
+    """Arithmetic in ``Q(t)[w] / (w^2 - g0)`` on sympy ``Poly`` objects in ``(w, t)``.
+
+    ``g0 = None``: no ``w``, plain ``Q[t]``.  Elements are polynomials reduced to degree
+    at most one in ``w``; quotients are kept as pairs (numerator, denominator).
+    """
+
+    def __init__(self, g0):
+        self.g0 = g0
+        self.modulus = None if g0 is None else sympy.Poly(W**2 - g0, W, T, domain="QQ")
+
+    def poly(self, e) -> sympy.Poly:
+        return e if isinstance(e, sympy.Poly) else sympy.Poly(e, W, T, domain="QQ")
+
+    def reduce(self, e) -> sympy.Poly:
+        p = self.poly(e)
+        if self.modulus is None or p.degree(W) < 2:
+            return p
+        return p.rem(self.modulus)
+
+    def homogenised(self, polys: list, solved, param, num, den) -> list:
+        """``den^K P(num/den, t)`` for each ``P(solved, param)``, one ``K`` (the largest degree) for all."""
+        ps = [sympy.Poly(sympy.expand(p).subs(param, T), solved) for p in polys]
+        k = max(p.degree() for p in ps)
+        num_p, den_p = self.poly(num), self.poly(den)
+        powers_n = [self.poly(1)]
+        for _ in range(k):
+            powers_n.append(self.reduce(powers_n[-1] * num_p))
+        powers_d = [self.poly(1)]
+        for _ in range(k):
+            powers_d.append(powers_d[-1] * den_p)
+        out = []
+        for p in ps:
+            acc = self.poly(0)
+            for (i,), c in p.terms():
+                acc = acc + self.poly(c) * powers_n[i] * powers_d[k - i]
+            out.append(self.reduce(acc))
+        return out
+
+    def split(self, p) -> tuple:
+        """``(p0, p1)`` with ``p = p0 + p1 w`` (expressions in ``t``)."""
+        p0, p1 = sympy.Integer(0), sympy.Integer(0)
+        for (i, j), c in self.poly(p).terms():
+            if i == 0:
+                p0 += c * T**j
+            else:
+                p1 += c * T**j
+        return p0, p1
+
+    def ratio(self, p, q) -> tuple:
+        """``p / q`` as ``(a + b w, c)`` with ``a, b, c`` polynomials in ``t`` (conjugate of ``q``)."""
+        p, q = self.reduce(p), self.reduce(q)
+        if self.g0 is None:
+            return (p.as_expr(), q.as_expr())
+        q0, q1 = self.split(q)
+        conj = self.poly(q0 - q1 * W)
+        den = self.poly(q0**2 - q1**2 * self.g0)
+        return (self.reduce(p * conj).as_expr(), den.as_expr())
+
+    def curve(self, joints: list) -> ConfigurationCurve:
+        nums, wnums, dens = [], [], []
+        for n_, d_ in joints:
+            a, b = self.split(n_)
+            nums.append(a)
+            wnums.append(b)
+            dens.append(sympy.expand(d_))
+        return ConfigurationCurve(nums, wnums, dens, self.g0)

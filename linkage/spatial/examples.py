@@ -1,6 +1,6 @@
-"""The linkages of "The Theory of Bonds" (Examples 1, 2, 3, 11, 12) as ``RevoluteChain`` objects.
+"""The linkages of "The Theory of Bonds" (Examples 1, 2, 3, 11, 12, 13) as ``RevoluteChain`` objects.
 
-Examples 1-3 are given by their axes alone (the configuration curve is
+Examples 1-3 and 13 are given by their axes alone (the configuration curve is
 computed).  Examples 11 and 12 are built as the paper describes, by factoring
 quadratic motion polynomials, and carry the paper's printed configuration
 curves, which the constructor checks against the closure condition exactly.
@@ -15,7 +15,15 @@ from .chain import RevoluteChain, motion_factorization
 from .curve import T, ConfigurationCurve
 from .dualquat import DualQuaternion
 
-__all__ = ["bennett", "example_11", "example_12", "example_11_axes", "planar_four_bar", "spherical_four_bar"]
+__all__ = [
+    "bennett",
+    "bricard_example_13",
+    "example_11",
+    "example_12",
+    "example_11_axes",
+    "planar_four_bar",
+    "spherical_four_bar",
+]
 
 
 def _line(primal, dual) -> DualQuaternion:
@@ -89,3 +97,17 @@ def example_12() -> RevoluteChain:
     t = T
     curve = ConfigurationCurve.rational([3 + t, -(t**2 + 3 * t + 1) / (2 * t + 3), t, t**2 + 5 * t + 7, t + 1, t])
     return RevoluteChain([h1p - 3 * one, h2, h3, h4, h5, h6p], curve=curve)
+
+
+def bricard_example_13() -> RevoluteChain:
+    """Example 13, Bricard's plane symmetric 6R linkage, from its printed axes alone.
+
+    ``h3 = k`` and ``h6 = j`` span the symmetry plane; ``h1, h5`` and ``h2, h4`` are mirror
+    images.  Its configuration curve (genus one) is computed by elimination.
+    """
+    k, j = _line([0, 0, 1], [0, 0, 0]), _line([0, 1, 0], [0, 0, 0])
+    h1 = _line([R(4, 9), -R(7, 9), R(4, 9)], [-R(17, 27), -R(4, 27), R(10, 27)])
+    h2 = _line([R(3, 7), R(2, 7), R(6, 7)], [R(32, 49), R(12, 49), -R(20, 49)])
+    h4 = _line([R(3, 7), -R(2, 7), -R(6, 7)], [-R(32, 49), R(12, 49), -R(20, 49)])
+    h5 = _line([R(4, 9), R(7, 9), -R(4, 9)], [R(17, 27), -R(4, 27), R(10, 27)])
+    return RevoluteChain([h1, h2, k, h4, h5, j])
