@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 import sympy
 
 from .curve import T, W, ConfigurationCurve
@@ -123,7 +124,8 @@ def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
     ------
     NotImplementedError
         For a factor of degree above 2 in both ``t_5`` and ``t_6`` (not a double cover
-        of either line).
+        of either line) on which the closure holds (a numerical screen at generic
+        points tells such a component from a spurious factor, which is skipped).
     """
     h1, h2, h3, h4, h5, h6 = axes
     x, y = sympy.symbols("x y")  # t_5, t_6
@@ -145,6 +147,8 @@ def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
         if dx == 0 or dy == 0:
             continue  # joint 5 or 6 fixed: t^2 + 1, or a component the closure check cannot take whole
         if min(dx, dy) > 2:
+            if not _closes_somewhere(f, x, y, m, coords, axes):
+                continue  # spurious: the closure fails at generic points over this factor
             raise NotImplementedError(
                 f"a component of degree {dx} in t_5 and {dy} in t_6: not a double cover of either joint's line; "
                 "pass curve= with a parametrisation"
@@ -184,6 +188,39 @@ def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
         except (ValueError, ZeroDivisionError):
             continue
     return curves
+
+
+def _closes_somewhere(f, x, y, m: sympy.Matrix, coords: sympy.Matrix, axes: Sequence[DualQuaternion]) -> bool:
+    """Whether the closure holds at points over the factor ``f(t_5, t_6) = 0`` (complex floats).
+
+    Used only to tell a factor that cannot be parametrised here from a spurious one: at
+    three generic ``t_6`` and every root ``t_5``, the null vector of ``M`` gives ``t_3, t_4``,
+    ``L_12`` gives ``t_1, t_2``, and the product's vector and dual parts are compared
+    with its scalar part.  A genuine component closes to rounding (``1e-8``); points of a
+    spurious factor miss by order one.
+    """
+    h = [a.map(complex) for a in axes]
+    coords_f = np.array(coords.evalf(), dtype=complex)
+    for t6 in (0.3141, -1.2718, 2.2361):
+        fx = sympy.Poly(f.subs(y, sympy.Rational(t6)), x)
+        for t5 in np.roots([complex(c) for c in fx.all_coeffs()]):
+            mm = np.array(m.subs({x: t5, y: t6}).evalf(), dtype=complex)
+            v = np.linalg.svd(mm)[2][-1].conj()
+            if abs(v[3]) < 1e-12 * np.max(np.abs(v)):
+                continue
+            t3, t4 = v[1] / v[3], v[2] / v[3]
+            z = (t6 + h[5]) * (t5 + h[4]) * (t4 + h[3]) * (t3 + h[2])
+            alpha = coords_f @ np.array(list(z), dtype=complex)
+            if abs(alpha[3]) < 1e-12 * np.max(np.abs(alpha)):
+                continue
+            joints = [-alpha[2] / alpha[3], -alpha[1] / alpha[3], t3, t4, t5, t6]
+            prod = DualQuaternion.scalar(1.0 + 0j)
+            for t, a in zip(joints, h):
+                prod = prod * (t - a)
+            size = max(abs(c) for c in prod)
+            if max(abs(c) for c in prod.coefficients[1:]) <= 1e-8 * size and abs(prod[0]) > 1e-8 * size:
+                return True
+    return False
 
 
 def _vanishes_on(column: sympy.Matrix, f, x, y) -> bool:
