@@ -19,7 +19,7 @@ from sympy import Rational as R
 from linkage.spatial import DualQuaternion, RevoluteChain
 from linkage.spatial.chain import RigidLinkageError, distances_from_connections
 from linkage.spatial.elimination import candidate_curves_5r
-from linkage.spatial.synthesis import bennett_linkage, goldberg
+from linkage.spatial.synthesis import bennett_linkage, goldberg, goldberg_decomposition
 
 # eq. (18), the Goldberg linkage (Figure 1(c) numbering)
 D18 = np.array([[0, 1, 2, 3, 2], [1, 0, 1, 2, 3], [2, 1, 0, 1, 2], [3, 2, 1, 0, 1], [2, 3, 2, 1, 0]])
@@ -122,9 +122,10 @@ def test_goldberg_curve_agrees_with_elimination_from_the_axes_alone(fixed_goldbe
     composed = g.configuration_curve()
     t = sympy.Symbol("t")
     ex_c, ex_e = composed.expressions(), eliminated.expressions()
+    (param,) = [k for k, e in enumerate(ex_e) if e == t]  # the joint that parametrises the eliminated curve
     for s in (R(1, 3), R(-5, 2), R(7)):
         p = [e.subs(t, s) for e in ex_c]
-        q = [e.subs(t, p[4]) for e in ex_e]  # eliminated curve is parametrised by t_5
+        q = [e.subs(t, p[param]) for e in ex_e]
         assert p == q
     assert np.array_equal(alone.distance_matrix(), g.distance_matrix())
 
@@ -198,3 +199,118 @@ def test_rigid_linkage_error_is_a_value_error_and_moved_bennett_is_rigid():
     chain = RevoluteChain(axes)
     assert chain.is_mobile() is False
     assert RevoluteChain(BENNETT).is_mobile() is True
+
+
+def scrambled_goldberg(rng):
+    """A random mobile 5R not in Goldberg's form: a random Goldberg linkage moved to another
+    configuration (its axes where that configuration puts them), displaced rigidly, renumbered
+    cyclically and possibly reversed.  Returns the axes and the position of the double joint."""
+    h3, h6 = skew_pair(rng)
+    c_a, c_b = offset(rng), offset(rng)
+    while c_b == c_a:
+        c_b = offset(rng)
+    _, _, g = goldberg_from_link(h3, h6, c_a, c_b)
+    t = sympy.Symbol("t")
+    expr = g.configuration_curve().expressions()
+    for t0 in (R(1, 2), R(-2, 3), R(5, 4), R(3), R(-7, 5)):
+        joints = [e.subs(t, t0) for e in expr]
+        if all(j.is_finite for j in joints):
+            break
+    pose = DualQuaternion.scalar(sympy.Integer(1), sympy.Integer(0))
+    moved = [g.axes[0]]
+    for k in range(1, 5):
+        pose = pose * (joints[k - 1] - g.axes[k - 1])
+        moved.append((pose * g.axes[k] * pose.inverse()).map(sympy.simplify))
+    r = [R(int(x)) for x in rng.integers(-3, 4, 4)]
+    r[0] += 5  # a nonzero rotation quaternion
+    v = [R(int(x)) for x in rng.integers(-3, 4, 3)]
+    sigma = DualQuaternion([*r, 0, 0, 0, 0]) * DualQuaternion([1, 0, 0, 0, 0, *(-x / 2 for x in v)])
+    placed = [(sigma * h * sigma.inverse()).map(sympy.simplify) for h in moved]
+    shift = int(rng.integers(5))
+    order = [(shift + k) % 5 for k in range(5)]
+    if rng.integers(2):
+        order = order[::-1]
+    return [placed[k] for k in order], order.index(2)
+
+
+def _karger_check(rng):
+    axes, double = scrambled_goldberg(rng)
+    chain = RevoluteChain(axes)
+    assert chain.is_mobile()
+    a, b = goldberg_decomposition(chain)
+    assert a.axes[2] == axes[double] and b.axes[0] == axes[double]
+    assert np.array_equal(a.distance_matrix(), D18_BENNETT) and np.array_equal(b.distance_matrix(), D18_BENNETT)
+    g = goldberg(a, b)
+    assert list(g.axes) == [axes[(double + k) % 5] for k in (-2, -1, 0, 1, 2)]
+
+
+def test_karger_classification_on_random_mobile_5r():
+    """Theorem 34: a mobile 5R is a Goldberg linkage; its two Bennett linkages are found from
+    the axes alone (3 random chains here, 20 in the slow study)."""
+    rng = np.random.default_rng(34)
+    for _ in range(3):
+        _karger_check(rng)
+
+
+@pytest.mark.slow
+def test_karger_classification_on_twenty_random_mobile_5r():
+    rng = np.random.default_rng(3434)
+    for _ in range(20):
+        _karger_check(rng)
+
+
+def test_goldberg_decomposition_refuses_rigid_and_non_5r_chains(fixed_goldberg):
+    a, _, _ = fixed_goldberg
+    with pytest.raises(ValueError, match="5R RevoluteChain"):
+        goldberg_decomposition(a)
+    rng = np.random.default_rng(1)
+    with pytest.raises(RigidLinkageError):
+        goldberg_decomposition(RevoluteChain([rational_line(rng) for _ in range(5)]))
+
+
+def coupling_degree_and_span(chain, i, j):
+    """Degree of the polynomial map t -> F_ij (coordinates freed of their gcd) and the dimension
+    of the linear span of its image, computed from the rational curve alone (no bonds)."""
+    t = sympy.Symbol("t")
+    curve = chain.configuration_curve()
+    f = DualQuaternion.scalar(sympy.Integer(1), sympy.Integer(0))
+    for k in [(i + s) % chain.n for s in range((j - i) % chain.n)]:  # joints i+1..j, 0-based
+        f = (f * (curve.a[k].as_expr() - curve.c[k].as_expr() * chain.axes[k])).map(sympy.expand)
+    polys = [sympy.Poly(c, t) for c in f if c != 0]
+    g = polys[0]
+    for p in polys[1:]:
+        g = sympy.gcd(g, p)
+    reduced = [sympy.div(p, g)[0] for p in polys]
+    degree = max(p.degree() for p in reduced)
+    samples = sympy.Matrix([[p.eval(s) for p in reduced] for s in range(-4, 5)])
+    return degree, samples.rank()
+
+
+def test_section_4_coupling_curves_are_conics_and_twisted_cubics(fixed_goldberg):
+    """Theorem 33 with Theorem 19 (a) checked independently of the bonds: on the rational curve
+    (a birational parametrisation) deg C_ij deg f_ij is the degree of t -> F_ij; the coupling
+    curves of non-adjacent links have degree 2 (spanning a plane: conics) or 3 (spanning a 3-space:
+    twisted cubics), and neighbouring links move on lines."""
+    _, _, g = fixed_goldberg
+    d = g.distance_matrix()
+    kinds = []
+    for i, j in itertools.combinations(range(1, 6), 2):
+        degree, span = coupling_degree_and_span(g, i, j)
+        assert degree == d[i - 1, j - 1]
+        if (j - i) % 5 in (1, 4):
+            assert span == 2  # a rotation about the common axis: a line (twice round at the double joint)
+        else:
+            assert (degree, span) in ((2, 3), (3, 4))
+            kinds.append(degree)
+    assert sorted(kinds) == [2, 2, 2, 3, 3]
+
+
+@pytest.mark.parametrize("name", ["bennett", "example_11", "example_12"])
+def test_theorem_19_a_by_the_degree_of_the_coupling_map(name):
+    """d(i, j) from the bonds equals the degree of t -> F_ij on the rational curve."""
+    from linkage.spatial import examples
+
+    chain = {"bennett": examples.bennett, "example_11": examples.example_11, "example_12": examples.example_12}[name]()
+    d = chain.distance_matrix()
+    for i, j in itertools.combinations(range(1, chain.n + 1), 2):
+        assert coupling_degree_and_span(chain, i, j)[0] == d[i - 1, j - 1]

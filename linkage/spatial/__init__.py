@@ -10,7 +10,7 @@ from .curve import ConfigurationCurve, Place
 from .dualquat import DualNumber, DualQuaternion
 from .elimination import RigidLinkageError
 from .factorization import MotionFactorizationError
-from .synthesis import bennett_linkage, goldberg, linkage_from_factorizations
+from .synthesis import bennett_linkage, goldberg, goldberg_decomposition, linkage_from_factorizations
 
 __all__ = [
     "Bond",
@@ -25,6 +25,7 @@ __all__ = [
     "connection_numbers",
     "distances_from_connections",
     "goldberg",
+    "goldberg_decomposition",
     "linkage_from_factorizations",
     "motion_factorization",
 ]

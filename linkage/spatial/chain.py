@@ -276,8 +276,9 @@ class RevoluteChain:
         quadratic in ``t_1`` (``w`` = square root of its discriminant); then
         ``t_2 = -alpha_2 / alpha_3`` and ``t_3 = -alpha_1 / alpha_3``.
 
-        ``n = 5`` (parameter ``t = t_5``) and ``n = 6`` (parameter ``t_6``, or ``t_5``
-        when the component is a double cover of the ``t_5`` line only): the coupling
+        ``n = 5`` (parameter ``t_4`` or ``t_5``, rational where possible) and ``n = 6``
+        (parameter ``t_6``, or ``t_5`` when the component is a double cover of the ``t_5``
+        line only): the coupling
         equality with ``L_12``, see :mod:`linkage.spatial.elimination`; every
         candidate component is checked against the closure condition exactly.
 

@@ -38,20 +38,23 @@ class RigidLinkageError(ValueError):
 def candidate_curves_5r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCurve]:
     """Curves in the normal form of :class:`ConfigurationCurve`, one per component candidate.
 
+    The parameter is ``t_4`` where a component is linear in ``t_5`` (then it is rational),
+    else ``t_5``.
+
     ``axes`` are five rational unit lines.  The candidates still have to pass the exact
     closure check (``RevoluteChain(axes, curve=...)``).  A component on which joint 4 or
     joint 5 stays fixed (a factor free of one variable, not ``t^2 + 1``) cannot be
     parametrised by the other one; it raises ``ValueError``.
     """
     h1, h2, h3, h4, h5 = axes
-    y = sympy.Symbol("y")  # t_4; t_5 is the curve parameter T
+    y, x = sympy.symbols("y x")  # t_4, t_5
     one = sympy.Integer(1)
     basis = sympy.Matrix([list(v) for v in (DualQuaternion.scalar(one), h1, h2, h1 * h2)]).T
     if basis.rank() != 4:
         raise ValueError("axes 1 and 2 span less than a 4-dimensional coupling space (equal lines?)")
     coords = (basis.T * basis).inv() * basis.T
-    a = sympy.Matrix(list(((T + h5) * (y + h4)).map(sympy.expand)))
-    b = sympy.Matrix(list(((T + h5) * (y + h4) * h3).map(sympy.expand)))
+    a = sympy.Matrix(list(((x + h5) * (y + h4)).map(sympy.expand)))
+    b = sympy.Matrix(list(((x + h5) * (y + h4) * h3).map(sympy.expand)))
     pa = (a - basis * (coords * a)).applyfunc(sympy.expand)
     pb = (b - basis * (coords * b)).applyfunc(sympy.expand)
     minors = [sympy.expand(pa[k] * pb[m] - pa[m] * pb[k]) for k in range(8) for m in range(k + 1, 8)]
@@ -64,34 +67,38 @@ def candidate_curves_5r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
         if g.is_number:
             return []
     curves = []
-    for f, _ in sympy.factor_list(g, y, T)[1]:
-        dy, dt = sympy.degree(f, y), sympy.degree(f, T)
-        v = T if dy == 0 else (y if dt == 0 else None)
+    for f, _ in sympy.factor_list(g, y, x)[1]:
+        dy, dx = sympy.degree(f, y), sympy.degree(f, x)
+        v = x if dy == 0 else (y if dx == 0 else None)
         if v is not None:
             if sympy.rem(v**2 + 1, f, v) == 0:
                 continue  # t_k = +-I: the product has zero norm there, no configuration
             raise ValueError(
-                f"the configuration set has a component with joint {5 if v == T else 4} fixed ({f} = 0); "
+                f"the configuration set has a component with joint {5 if v == x else 4} fixed ({f} = 0); "
                 "it cannot be parametrised by the other joint: pass curve= for that component"
             )
-        if dy == 1:
-            c1, c0 = sympy.Poly(f, y).all_coeffs()
-            t4 = -c0 / c1
+        # parametrise by the joint in which f is linear if there is one (a rational curve), else by t_5
+        solved, param = (x, y) if dx == 1 else (y, x)
+        poly = sympy.Poly(f.subs(param, T), solved)
+        if poly.degree() == 1:
+            c1, c0 = poly.all_coeffs()
+            value = -c0 / c1
             g_w = None
-        else:  # the minors have degree <= 2 in t_4
-            ca, cb, cc = sympy.Poly(f, y).all_coeffs()
+        else:  # the minors have degree <= 2 in each variable
+            ca, cb, cc = poly.all_coeffs()
             g_w = sympy.expand(cb**2 - 4 * ca * cc)
-            t4 = (-cb + W) / (2 * ca)
-        pa_s, pb_s = pa.subs(y, t4), pb.subs(y, t4)
+            value = (-cb + W) / (2 * ca)
+        t4, t5 = (value, T) if solved == y else (T, value)
+        pa_s, pb_s = pa.subs({y: t4, x: t5}), pb.subs({y: t4, x: t5})
         k = next((k for k in range(8) if sympy.simplify(pa_s[k]) != 0), None)
         if k is None:
             continue
         t3 = sympy.together(-pb_s[k] / pa_s[k])
-        z = a.subs(y, t4) * t3 + b.subs(y, t4)
+        z = a.subs({y: t4, x: t5}) * t3 + b.subs({y: t4, x: t5})
         alpha = coords * z
         t1 = sympy.together(-alpha[2] / alpha[3])
         t2 = sympy.together(-alpha[1] / alpha[3])
-        joints = [t1, t2, t3, t4, T]
+        joints = [t1, t2, t3, t4, t5]
         try:
             if g_w is None:
                 curves.append(ConfigurationCurve.rational([sympy.cancel(e) for e in joints]))

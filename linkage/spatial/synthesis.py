@@ -37,7 +37,7 @@ from .curve import T, ConfigurationCurve
 from .dualquat import DualQuaternion
 from .factorization import motion_factorization, polynomial_product
 
-__all__ = ["bennett_linkage", "goldberg", "linkage_from_factorizations"]
+__all__ = ["bennett_linkage", "goldberg", "goldberg_decomposition", "linkage_from_factorizations"]
 
 
 def linkage_from_factorizations(
@@ -146,3 +146,73 @@ def goldberg(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> RevoluteChai
     b3, b4, b5, _ = (sympy.cancel(e.subs(T, -T)) for e in curves[1])  # b_6 = -a_6 = -t
     tau = sympy.cancel((a3 * b3 - 1) / (a3 + b3))
     return RevoluteChain([h1, h2, h3, b_axes[1], b_axes[2]], curve=ConfigurationCurve.rational([a1, a2, tau, b4, b5]))
+
+
+def goldberg_decomposition(chain: RevoluteChain) -> tuple[RevoluteChain, RevoluteChain]:
+    """The two Bennett linkages of a mobile 5R chain: Karger's classification, executed.
+
+    [HSS] Section 4: a non-degenerate 5R linkage has exactly one joint of length two
+    (Lemma 32), say ``h_m``; its neighbours ``h_{m-1}, h_{m-2}`` have length one, so
+    ``t_{m-2}`` and ``t_{m-1}`` are Moebius functions of each other on the curve, and the
+    relative motion ``F = (s - h_{m-2})(t_{m-1}(s) - h_{m-1})`` is a quadratic motion
+    polynomial in ``s = t_{m-2}`` (made monic on the right by a constant rotation about
+    ``h_{m-1}``).  Its second factorisation ``(s - k_1)(s - k_2)`` (norm factors swapped)
+    has ``k_2`` about ``h_m`` and ``k_1`` about the axis ``h_6`` of Theorem 34's proof.
+
+    Returns
+    -------
+    (bennett_a, bennett_b)
+        ``(h_{m-2}, h_{m-1}, h_m, h_6)`` and ``(h_m, h_{m+1}, h_{m+2}, h_6)`` (indices mod 5),
+        so that ``goldberg(bennett_a, bennett_b)`` is the chain relabelled to start at
+        ``h_{m-2}``.  Both are checked to be Bennett linkages (mobile 4R chains with a
+        rational curve), and ``goldberg`` checks that their composition closes the chain.
+
+    Raises
+    ------
+    ValueError
+        For a chain that is not 5R, a rigid one (``RigidLinkageError``), a degenerate one
+        (joint lengths not ``(2, 1, 1, 1, 1)`` up to rotation, a curve of positive genus),
+        or when the construction does not give back the axis ``h_m`` or a Bennett
+        linkage (not a Goldberg linkage).
+    """
+    if not isinstance(chain, RevoluteChain) or chain.n != 5:
+        raise ValueError(f"chain must be a 5R RevoluteChain; got {chain!r}")
+    curve = chain.configuration_curve()
+    d = chain.distance_matrix()
+    lengths = [int(d[(i - 1) % 5, i]) for i in range(5)]
+    if sorted(lengths) != [1, 1, 1, 1, 2] or not curve.is_rational:
+        raise ValueError(
+            f"a degenerate 5R chain: joint lengths {lengths} (Lemma 32: one joint of length 2, four of length 1), "
+            f"curve genus {curve.genus}"
+        )
+    m = lengths.index(2)  # 0-based index of the double joint
+    order = [(m + k) % 5 for k in (-2, -1, 0, 1, 2)]
+    h1, h2, h3, h4, h5 = (chain.axes[k] for k in order)
+    e = curve.expressions()
+    r1, r2 = sympy.cancel(e[order[0]]), sympy.cancel(e[order[1]])
+    s = sympy.Symbol("s")
+    t_of_s = sympy.solve(sympy.Eq(r1, s), T)
+    if len(t_of_s) != 1:
+        raise ValueError(f"joint {order[0] + 1} does not parametrise the curve (t = {t_of_s}): not a Goldberg linkage")
+    num, den = sympy.fraction(sympy.cancel(r2.subs(T, t_of_s[0])))
+    p, q = sympy.Poly(num, s).all_coeffs() if sympy.degree(num, s) == 1 else (sympy.Integer(0), num)
+    u, v = sympy.Poly(den, s).all_coeffs() if sympy.degree(den, s) == 1 else (sympy.Integer(0), den)
+    one = DualQuaternion.scalar(sympy.Integer(1), sympy.Integer(0))
+    # (s - h1)((p s + q) - (u s + v) h2) = (s - h1)(s - g2) rho, rho = p - u h2 commuting with g2
+    rho = p * one - u * h2
+    g2 = (-(rho.inverse() * (q * one - v * h2))).map(sympy.simplify)
+    poly = polynomial_product([-h1, one], [-g2, one])
+    k1, k2 = motion_factorization(poly[:-1], norm_factors=[(g2.quadratic_form(), -2 * g2[0]), (1, 0)])
+    axes = []
+    for k in (k1, k2):
+        r = sympy.sqrt(sympy.nsimplify(k.quadratic_form() - k[0] ** 2))
+        axes.append(((k - k[0]) * (1 / r)).map(sympy.simplify))
+    h6, h3_found = axes
+    if h3_found != h3 and h3_found != -h3:
+        raise ValueError(f"the second factorisation turns about {h3_found}, not about h_m = {h3}: not a Goldberg linkage")
+    bennett_a, bennett_b = RevoluteChain([h1, h2, h3, h6]), RevoluteChain([h3, h4, h5, h6])
+    for name, b in (("bennett_a", bennett_a), ("bennett_b", bennett_b)):
+        if not b.is_mobile() or not b.configuration_curve().is_rational:
+            raise ValueError(f"{name} = {b.axes} is not a Bennett linkage: not a Goldberg linkage")
+    goldberg(bennett_a, bennett_b)  # checks that the composed curve closes the chain
+    return bennett_a, bennett_b
