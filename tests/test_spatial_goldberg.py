@@ -19,6 +19,7 @@ from sympy import Rational as R
 from linkage.spatial import DualQuaternion, RevoluteChain
 from linkage.spatial.chain import RigidLinkageError, distances_from_connections
 from linkage.spatial.elimination import candidate_curves_5r
+from linkage.spatial.examples import goldberg_5r
 from linkage.spatial.synthesis import bennett_linkage, goldberg, goldberg_decomposition
 
 # eq. (18), the Goldberg linkage (Figure 1(c) numbering)
@@ -91,9 +92,7 @@ def assert_theorems_19_cd_and_23(chain):
 
 @pytest.fixture(scope="module")
 def fixed_goldberg():
-    h3 = DualQuaternion.from_line([0, 1, 2], [R(2, 3), R(-1, 3), R(2, 3)])
-    h6 = DualQuaternion.from_line([1, -1, R(1, 2)], [R(4, 9), R(1, 9), R(-8, 9)])
-    return goldberg_from_link(h3, h6, R(2), R(-1, 2))
+    return goldberg_5r()
 
 
 def test_example_8_eq_18_and_example_10(fixed_goldberg):

@@ -12,15 +12,18 @@ import sympy
 from sympy import Rational as R
 
 from .chain import RevoluteChain, motion_factorization
+from .synthesis import bennett_linkage, goldberg, linkage_from_factorizations
 from .curve import T, ConfigurationCurve
 from .dualquat import DualQuaternion
 
 __all__ = [
     "bennett",
     "bricard_example_13",
+    "cubic_6r",
     "example_11",
     "example_12",
     "example_11_axes",
+    "goldberg_5r",
     "planar_four_bar",
     "spherical_four_bar",
 ]
@@ -111,3 +114,36 @@ def bricard_example_13() -> RevoluteChain:
     h4 = _line([R(3, 7), -R(2, 7), -R(6, 7)], [-R(32, 49), R(12, 49), -R(20, 49)])
     h5 = _line([R(4, 9), R(7, 9), -R(4, 9)], [R(17, 27), -R(4, 27), R(10, 27)])
     return RevoluteChain([h1, h2, k, h4, h5, j])
+
+
+def goldberg_5r() -> tuple[RevoluteChain, RevoluteChain, RevoluteChain]:
+    """A Goldberg 5R linkage and its two Bennett linkages (the paper gives no axes for one).
+
+    The shared link carries ``h3`` through ``(0, 1, 2)`` with direction ``(2, -1, 2)/3`` and
+    ``h6`` through ``(1, -1, 1/2)`` with direction ``(4, 1, -8)/9``; the Bennett linkages are
+    those of :func:`~linkage.spatial.synthesis.bennett_linkage` with offsets ``2`` and
+    ``-1/2``.  Returns ``(bennett_a, bennett_b, goldberg)`` with
+    ``bennett_a = (h1, h2, h3, h6)``, ``bennett_b = (h3, h4, h5, h6)``.
+    """
+    h3 = DualQuaternion.from_line([0, 1, 2], [R(2, 3), R(-1, 3), R(2, 3)])
+    h6 = DualQuaternion.from_line([1, -1, R(1, 2)], [R(4, 9), R(1, 9), R(-8, 9)])
+    a = bennett_linkage(h3, h6, 2)  # (h3, h6, x, y)
+    b = bennett_linkage(h6, h3, R(-1, 2))  # (h6, h3, p, q)
+    bennett_a = RevoluteChain([a.axes[2], a.axes[3], a.axes[0], a.axes[1]])
+    bennett_b = RevoluteChain([b.axes[1], b.axes[2], b.axes[3], b.axes[0]])
+    return bennett_a, bennett_b, goldberg(bennett_a, bennett_b)
+
+
+def cubic_6r() -> RevoluteChain:
+    """A 6R linkage from two factorisations of a cubic motion polynomial (refs. [8, 10]).
+
+    ``C = (t - h_1)(t - 1 - h_2)(t + 1 - h_3)`` with ``h_1 = i``, ``h_2 = eps i + j``,
+    ``h_3`` through ``(1, 0, 2)`` with direction ``(2, 2, 1)/3``, refactored with the norm
+    factors in reverse order (:func:`~linkage.spatial.synthesis.linkage_from_factorizations`).
+    """
+    one = DualQuaternion.scalar(sympy.Integer(1), sympy.Integer(0))
+    h1 = _line([1, 0, 0], [0, 0, 0])
+    h2 = _line([0, 1, 0], [1, 0, 0])
+    h3 = DualQuaternion.from_line([1, 0, 2], [R(2, 3), R(2, 3), R(1, 3)])
+    factors = [h1, one + h2, -one + h3]
+    return linkage_from_factorizations(factors, [(2, 2), (2, -2), (1, 0)])

@@ -1,7 +1,9 @@
-"""Figures of the spatial tutorial: bond diagrams of the paper's examples, a moving Bennett linkage.
+"""Figures of the spatial tutorial: bond diagrams, and linkages moving along their real curves.
 
 Run ``python -m linkage.spatial.figures [output directory]`` (default ``docs/figures``).
-Writes ``spatial_bond_diagrams.png``, ``bennett_poses.png`` and ``bennett.gif``.
+Writes ``spatial_bond_diagrams.png`` and, for the Bennett linkage of Example 1, a
+Goldberg 5R, Bricard's linkage (Example 13) and a 6R from a cubic motion polynomial,
+``NAME_poses.png`` (eight poses) and ``NAME.gif`` (an animation).
 """
 
 from __future__ import annotations
@@ -12,11 +14,20 @@ from pathlib import Path
 import numpy as np
 
 from .draw import draw_bond_diagram, draw_linkage, link_segments
-from .examples import bennett, example_11, example_12, planar_four_bar, spherical_four_bar
+from .examples import (
+    bennett,
+    bricard_example_13,
+    cubic_6r,
+    example_11,
+    example_12,
+    goldberg_5r,
+    planar_four_bar,
+    spherical_four_bar,
+)
 
 
 def bond_diagrams(path: Path) -> None:
-    """Write the bond diagrams of Examples 1, 2, 3, 11 and 12 side by side to ``path``."""
+    """Write the bond diagrams of Examples 1, 2, 3, 11, 12, 13, a Goldberg 5R and a cubic 6R to ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -28,8 +39,12 @@ def bond_diagrams(path: Path) -> None:
         ("planar four-bar (Ex. 3)", planar_four_bar()),
         ("6R of Example 11", example_11()),
         ("6R of Example 12", example_12()),
+        ("Goldberg 5R (Fig. 1c)", goldberg_5r()[2]),
+        ("Bricard (Ex. 13)", bricard_example_13()),
+        ("6R from a cubic", cubic_6r()),
     ]
-    fig, axs = plt.subplots(1, len(chains), figsize=(3.2 * len(chains), 3.4))
+    fig, axs = plt.subplots(2, 4, figsize=(12.8, 6.8))
+    axs = axs.ravel()
     for ax, (title, chain) in zip(axs, chains):
         draw_bond_diagram(ax, chain.n, chain.connections(), title=title)
     fig.tight_layout()
@@ -37,18 +52,31 @@ def bond_diagrams(path: Path) -> None:
     plt.close(fig)
 
 
-def _bennett_frames(count: int):
-    """Real configurations ``t = t_4 = cot(phi/2)`` for ``phi`` evenly spaced (``t = inf`` at ``phi = 0``)."""
-    chain = bennett()
+def curve_frames(chain, count: int) -> list:
+    """``count`` real configurations around one real component of the chain's curve.
+
+    A rational curve is run through once with ``t = cot(phi/2)``, ``phi`` evenly spaced
+    (``t = inf`` at ``phi = 0``).  On a curve ``w^2 = g(t)`` the longest bounded interval
+    where ``g >= 0`` is an oval: branch ``w > 0`` from one root to the other, ``w < 0`` back.
+    Frames where a joint is undetermined (a 0/0 base point of the formulas) are left out.
+    """
     curve = chain.configuration_curve()
-    phis = np.linspace(0, 2 * np.pi, count, endpoint=False)
-    frames = []
-    for phi in phis:
-        if np.isclose(np.sin(phi / 2), 0):
-            frames.append(curve.places(complex("inf"))[0].joint_values())
-        else:
-            frames.append(curve(np.cos(phi / 2) / np.sin(phi / 2)))
-    return chain, frames
+    if curve.is_rational:
+        frames = []
+        for phi in np.linspace(0, 2 * np.pi, count, endpoint=False):
+            if np.isclose(np.sin(phi / 2), 0):
+                frames.append(curve.places(complex("inf"))[0].joint_values())
+            else:
+                frames.append(curve(np.cos(phi / 2) / np.sin(phi / 2)))
+    else:
+        bounded = [(a, b) for a, b in curve.real_intervals() if np.isfinite(a) and np.isfinite(b)]
+        if not bounded:
+            raise NotImplementedError("no bounded real interval: the real curve passes t = inf only")
+        a, b = max(bounded, key=lambda ab: ab[1] - ab[0])
+        half = count // 2
+        ts = a + (b - a) * (1 - np.cos(np.pi * (np.arange(half) + 0.5) / half)) / 2
+        frames = [curve(t, 1) for t in ts] + [curve(t, -1) for t in ts[::-1]]
+    return [f for f in frames if not any(np.isnan(complex(z)) for z in f)]
 
 
 def _frame_axes(ax, chain, frames) -> None:
@@ -63,43 +91,42 @@ def _frame_axes(ax, chain, frames) -> None:
     ax.set_zticks([])
 
 
-def bennett_poses(path: Path) -> None:
-    """Write eight poses of the Bennett linkage of Example 1 along its real curve to ``path``."""
+def poses_figure(path: Path, chain, title: str, count: int = 8) -> None:
+    """Write ``count`` poses of ``chain`` along a real component of its curve to ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    chain, frames = _bennett_frames(8)
+    frames = curve_frames(chain, count)
     fig = plt.figure(figsize=(6, 6))
     ax = fig.add_subplot(projection="3d")
     colors = plt.get_cmap("viridis")(np.linspace(0, 1, len(frames)))
     for joints, color in zip(frames, colors):
         draw_linkage(ax, chain, joints, color=color, alpha=0.8, axis_length=1.5)
     _frame_axes(ax, chain, frames)
-    ax.set_title("Bennett linkage of Example 1: eight poses along its real curve")
+    ax.set_title(title)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
-def bennett_animation(path: Path, frames: int = 48) -> None:
-    """Write the Bennett linkage moving once around its real curve to ``path`` (a GIF of ``frames`` frames)."""
+def animation(path: Path, chain, title: str, frames: int = 40) -> None:
+    """Write ``chain`` moving once around a real component of its curve to ``path`` (a GIF)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.animation import FuncAnimation, PillowWriter
 
-    chain, poses = _bennett_frames(frames)
-    fig = plt.figure(figsize=(5, 5))
+    poses = curve_frames(chain, frames)
+    fig = plt.figure(figsize=(4.5, 4.5))
     ax = fig.add_subplot(projection="3d")
 
     def update(k):
         ax.cla()
         draw_linkage(ax, chain, poses[k], axis_length=1.5)
         _frame_axes(ax, chain, poses)
-        t4 = poses[k][3]
-        ax.set_title(f"Bennett linkage, t4 = {t4.real:+.2f}" if np.isfinite(abs(t4)) else "Bennett linkage, t4 = inf")
+        ax.set_title(title)
 
     FuncAnimation(fig, update, frames=len(poses)).save(path, writer=PillowWriter(fps=12))
     plt.close(fig)
@@ -110,9 +137,18 @@ def main(argv: list[str]) -> None:
     out = Path(argv[0]) if argv else Path("docs/figures")
     out.mkdir(parents=True, exist_ok=True)
     bond_diagrams(out / "spatial_bond_diagrams.png")
-    bennett_poses(out / "bennett_poses.png")
-    bennett_animation(out / "bennett.gif")
-    print(f"wrote spatial_bond_diagrams.png, bennett_poses.png, bennett.gif to {out}")
+    written = ["spatial_bond_diagrams.png"]
+    moving = [
+        ("bennett", bennett(), "Bennett linkage of Example 1"),
+        ("goldberg", goldberg_5r()[2], "Goldberg 5R linkage"),
+        ("bricard", bricard_example_13(), "Bricard's linkage (Example 13)"),
+        ("cubic_6r", cubic_6r(), "6R from a cubic motion polynomial"),
+    ]
+    for name, chain, title in moving:
+        poses_figure(out / f"{name}_poses.png", chain, f"{title}: poses along a real component")
+        animation(out / f"{name}.gif", chain, title)
+        written += [f"{name}_poses.png", f"{name}.gif"]
+    print(f"wrote {', '.join(written)} to {out}")
 
 
 if __name__ == "__main__":
