@@ -3,7 +3,6 @@ for Examples 11 and 12 (found there by motion polynomial factorisation, not by e
 
 from __future__ import annotations
 
-import pytest
 import sympy
 
 from linkage.spatial import RevoluteChain
@@ -30,7 +29,6 @@ def test_example_11_curve_by_elimination_is_the_printed_one():
     assert _same_curve(curve, EX11)
 
 
-@pytest.mark.slow
 def test_example_12_curve_by_elimination_is_the_printed_one():
     chain = RevoluteChain(example_12().axes)
     assert _same_curve(chain.configuration_curve(), EX12)

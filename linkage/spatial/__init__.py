@@ -8,7 +8,7 @@ matplotlib only inside the drawing functions.  See ``linkage/spatial/README.md``
 from .chain import Bond, RevoluteChain, connection_numbers, distances_from_connections, motion_factorization
 from .curve import ConfigurationCurve, Place
 from .dualquat import DualNumber, DualQuaternion
-from .elimination import RigidLinkageError
+from .elimination import ReducibleCurveError, RigidLinkageError
 from .factorization import MotionFactorizationError
 from .synthesis import bennett_linkage, goldberg, goldberg_decomposition, linkage_from_factorizations
 
@@ -19,6 +19,7 @@ __all__ = [
     "DualNumber",
     "DualQuaternion",
     "Place",
+    "ReducibleCurveError",
     "RevoluteChain",
     "RigidLinkageError",
     "bennett_linkage",

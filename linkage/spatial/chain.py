@@ -23,11 +23,18 @@ import sympy
 from .curve import INF, T, W, ConfigurationCurve, Place, to_mpc
 from .coupling import coupling_space, pose_product
 from .dualquat import DualQuaternion
-from .elimination import RigidLinkageError, candidate_curves_5r, candidate_curves_6r
+from .elimination import ReducibleCurveError, RigidLinkageError, candidate_curves_5r, candidate_curves_6r
 from .factorization import motion_factorization
 from .series import WORKING_DIGITS, PrecisionExhausted, Series
 
-__all__ = ["Bond", "RevoluteChain", "RigidLinkageError", "distances_from_connections", "motion_factorization"]
+__all__ = [
+    "Bond",
+    "ReducibleCurveError",
+    "RevoluteChain",
+    "RigidLinkageError",
+    "distances_from_connections",
+    "motion_factorization",
+]
 
 #: Tolerance of the unit-line test for float axes (exact axes are tested exactly).
 AXIS_TOL = 1e-10
@@ -291,8 +298,8 @@ class RevoluteChain:
             (a ``ValueError``) If the chain is rigid: no curve component (``n = 4, 5``),
             or, for any ``n``, the home pose is an isolated configuration
             (:meth:`is_mobile`).
-        ValueError
-            If the curve is reducible, including a moving component on which a
+        ReducibleCurveError
+            (a ``ValueError``) If the curve is reducible, including a moving component on which a
             parameter joint is fixed (only components with such a joint at
             ``+-I``, where the product has zero norm, are dropped).
         NotImplementedError
@@ -333,7 +340,7 @@ class RevoluteChain:
         if not comps:
             raise RigidLinkageError("the chain is rigid: the closure equations have no common curve component")
         if len(comps) > 1:
-            raise ValueError(
+            raise ReducibleCurveError(
                 f"the configuration curve is reducible ({len(comps)} components): "
                 f"{[c.expressions() for c in comps]}; pass curve= with one component to analyse it alone"
             )
@@ -401,10 +408,8 @@ class RevoluteChain:
                 self.configuration_curve()
             except RigidLinkageError:
                 return False
-            except ValueError as err:
-                if "reducible" in str(err) or "component" in str(err):
-                    return True
-                raise
+            except ReducibleCurveError:
+                return True
             return True
         raise NotImplementedError(
             f"mobility of this {self.n}R chain ({self.data} axes, dependent joint screws at the home pose) "
@@ -442,7 +447,7 @@ class RevoluteChain:
             described = ", ".join(
                 f"{f.subs(x, t_1)} = 0 (joint {1 if sympy.degree(f, T) == 0 else self.n} fixed)" for f in fixed
             )
-            raise ValueError(
+            raise ReducibleCurveError(
                 f"the configuration curve (t = t_{self.n}) is reducible: besides "
                 f"{[str(c.subs(x, t_1)) for c in comps]} "
                 f"it has component(s) {described} along which the other joints can move; bonds and "
@@ -452,7 +457,7 @@ class RevoluteChain:
         if not comps:
             raise RigidLinkageError("the chain is rigid: the closure equations have no common curve component")
         if len(comps) > 1:
-            raise ValueError(f"the configuration curve is reducible ({len(comps)} components): {comps}")
+            raise ReducibleCurveError(f"the configuration curve is reducible ({len(comps)} components): {comps}")
         poly = sympy.Poly(comps[0], x)
         if poly.degree() == 1:
             c1, c0 = poly.all_coeffs()

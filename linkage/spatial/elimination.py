@@ -28,23 +28,28 @@ import sympy
 from .curve import T, W, ConfigurationCurve
 from .dualquat import DualQuaternion
 
-__all__ = ["RigidLinkageError", "candidate_curves_5r", "candidate_curves_6r"]
+__all__ = ["ReducibleCurveError", "RigidLinkageError", "candidate_curves_5r", "candidate_curves_6r"]
 
 
 class RigidLinkageError(ValueError):
     """The chain is rigid: its closure equations have no curve of solutions."""
 
 
+class ReducibleCurveError(ValueError):
+    """The configuration curve has several components; pass ``curve=`` to study one of them."""
+
+
 def candidate_curves_5r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCurve]:
     """Curves in the normal form of :class:`ConfigurationCurve`, one per component candidate.
 
     The parameter is ``t_4`` where a component is linear in ``t_5`` (then it is rational),
-    else ``t_5``.
+    else ``t_5``.  A factor for which no candidate can be built (a fixed joint 4 or 5, a
+    degenerate formula) is screened numerically: skipped when the closure fails at generic
+    points over it (spurious, e.g. ``t_k^2 + 1``), refused with ``NotImplementedError`` when
+    it holds there (a genuine component this parametrisation cannot represent).
 
     ``axes`` are five rational unit lines.  The candidates still have to pass the exact
-    closure check (``RevoluteChain(axes, curve=...)``).  A component on which joint 4 or
-    joint 5 stays fixed (a factor free of one variable, not ``t^2 + 1``) cannot be
-    parametrised by the other one; it raises ``ValueError``.
+    closure check (``RevoluteChain(axes, curve=...)``).
     """
     h1, h2, h3, h4, h5 = axes
     y, x = sympy.symbols("y x")  # t_4, t_5
@@ -69,14 +74,13 @@ def candidate_curves_5r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
     curves = []
     for f, _ in sympy.factor_list(g, y, x)[1]:
         dy, dx = sympy.degree(f, y), sympy.degree(f, x)
-        v = x if dy == 0 else (y if dx == 0 else None)
-        if v is not None:
-            if sympy.rem(v**2 + 1, f, v) == 0:
-                continue  # t_k = +-I: the product has zero norm there, no configuration
-            raise ValueError(
-                f"the configuration set has a component with joint {5 if v == x else 4} fixed ({f} = 0); "
-                "it cannot be parametrised by the other joint: pass curve= for that component"
+        if dy == 0 or dx == 0:
+            _refuse_if_closing(
+                _closes_somewhere_5r(f, y, x, axes, coords),
+                f"a component with joint {5 if dy == 0 else 4} fixed ({f} = 0), which cannot be parametrised by "
+                "the other joint",
             )
+            continue  # spurious (t_k = +-I, where the product has zero norm, and the like)
         # parametrise by the joint in which f is linear if there is one (a rational curve), else by t_5
         solved, param = (x, y) if dx == 1 else (y, x)
         poly = sympy.Poly(f.subs(param, T), solved)
@@ -92,6 +96,7 @@ def candidate_curves_5r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
         pa_s, pb_s = pa.subs({y: t4, x: t5}), pb.subs({y: t4, x: t5})
         k = next((k for k in range(8) if sympy.simplify(pa_s[k]) != 0), None)
         if k is None:
+            _refuse_if_closing(_closes_somewhere_5r(f, y, x, axes, coords), f"the component {f} = 0 (P A vanishes on it)")
             continue
         t3 = sympy.together(-pb_s[k] / pa_s[k])
         z = a.subs({y: t4, x: t5}) * t3 + b.subs({y: t4, x: t5})
@@ -104,7 +109,8 @@ def candidate_curves_5r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
                 curves.append(ConfigurationCurve.rational([sympy.cancel(e) for e in joints]))
             else:
                 curves.append(ConfigurationCurve.hyperelliptic(joints, g_w))
-        except (ValueError, ZeroDivisionError):
+        except (ValueError, ZeroDivisionError) as err:
+            _refuse_if_closing(_closes_somewhere_5r(f, y, x, axes, coords), f"the component {f} = 0 ({err})")
             continue  # a degenerate formula on a spurious factor
     return curves
 
@@ -151,15 +157,14 @@ def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
     curves = []
     for f, _ in sympy.factor_list(det, x, y)[1]:
         dx, dy = sympy.degree(f, x), sympy.degree(f, y)
-        if dx == 0 or dy == 0:
-            continue  # joint 5 or 6 fixed: t^2 + 1, or a component the closure check cannot take whole
-        if min(dx, dy) > 2:
-            if not _closes_somewhere(f, x, y, m, coords, axes):
-                continue  # spurious: the closure fails at generic points over this factor
-            raise NotImplementedError(
-                f"a component of degree {dx} in t_5 and {dy} in t_6: not a double cover of either joint's line; "
-                "pass curve= with a parametrisation"
+        if dx == 0 or dy == 0 or min(dx, dy) > 2:
+            what = (
+                f"a component with joint {6 if dx == 0 else 5} fixed ({f} = 0)"
+                if dx == 0 or dy == 0
+                else f"a component of degree {dx} in t_5 and {dy} in t_6, a double cover of neither joint's line"
             )
+            _refuse_if_closing(_closes_somewhere(f, x, y, m, coords, axes), what)
+            continue  # spurious: the closure fails at generic points over this factor
         solved, param = (x, y) if dx <= dy else (y, x)
         poly = sympy.Poly(f.subs(param, T), solved)
         if poly.degree() == 1:
@@ -192,41 +197,87 @@ def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
         joints = [t1, t2, t3, t4, t5, t6]
         try:
             curves.append(field.curve(joints))
-        except (ValueError, ZeroDivisionError):
+        except (ValueError, ZeroDivisionError) as err:
+            _refuse_if_closing(_closes_somewhere(f, x, y, m, coords, axes), f"the component {f} = 0 ({err})")
             continue
     return curves
 
 
-def _closes_somewhere(f, x, y, m: sympy.Matrix, coords: sympy.Matrix, axes: Sequence[DualQuaternion]) -> bool:
-    """Whether the closure holds at points over the factor ``f(t_5, t_6) = 0`` (complex floats).
+def _refuse_if_closing(closes: bool, what: str) -> None:
+    """Raise ``NotImplementedError`` for a factor that carries configurations but no candidate."""
+    if closes:
+        raise NotImplementedError(
+            f"the configuration set has {what}; it cannot be parametrised here: pass curve= with a parametrisation"
+        )
 
-    Used only to tell a factor that cannot be parametrised here from a spurious one: at
-    three generic ``t_6`` and every root ``t_5``, the null vector of ``M`` gives ``t_3, t_4``,
-    ``L_12`` gives ``t_1, t_2``, and the product's vector and dual parts are compared
-    with its scalar part.  A genuine component closes to rounding (``1e-8``); points of a
-    spurious factor miss by order one.
+
+def _screen_points(f, a, b):
+    """Complex points ``(a, b)`` on ``f(a, b) = 0`` over three generic values of one variable."""
+    generic = (sympy.Rational(3141, 10000), sympy.Rational(-12718, 10000), sympy.Rational(22361, 10000))
+    free, other = (a, b) if sympy.degree(f, a) > 0 else (b, a)  # solve for a variable f contains
+    for value in generic:
+        g = sympy.Poly(f.subs(other, value), free)
+        if g.degree() < 1:
+            continue
+        for root in np.roots([complex(c) for c in g.all_coeffs()]):
+            yield (root, float(value)) if free == a else (float(value), root)
+
+
+def _closure_holds(joints: list, axes: Sequence[DualQuaternion]) -> bool:
+    """The product is a nonzero scalar to ``1e-8`` of its size (a genuine configuration)."""
+    prod = DualQuaternion.scalar(1.0 + 0j)
+    for t, h in zip(joints, axes):
+        prod = prod * (t - h.map(complex))
+    size = max(abs(c) for c in prod)
+    return bool(max(abs(c) for c in prod.coefficients[1:]) <= 1e-8 * size and abs(prod[0]) > 1e-8 * size)
+
+
+def _closes_somewhere_5r(f, y, x, axes: Sequence[DualQuaternion], coords: sympy.Matrix) -> bool:
+    """Whether the closure holds at generic complex points over ``f(t_4, t_5) = 0`` (5R).
+
+    ``t_3`` solves ``A t_3 + A h_3 in L_12`` in the least-squares sense, ``L_12`` gives
+    ``t_1, t_2``.  A genuine component closes to rounding; a spurious factor misses by
+    order one.  Used only to tell the two apart where no candidate curve could be built.
+    """
+    h = [c.map(complex) for c in axes]
+    cf = np.array(coords.evalf(), dtype=complex)
+    basis = np.linalg.pinv(cf)  # 8 x 4, columns 1, h1, h2, h1 h2
+    for t4, t5 in _screen_points(f, y, x):
+        a = np.array(list((t5 + h[4]) * (t4 + h[3])), dtype=complex)
+        b = np.array(list((t5 + h[4]) * (t4 + h[3]) * h[2]), dtype=complex)
+        pa, pb = a - basis @ (cf @ a), b - basis @ (cf @ b)
+        if np.linalg.norm(pa) < 1e-12 * np.linalg.norm(a):
+            continue
+        t3 = -np.vdot(pa, pb) / np.vdot(pa, pa)
+        alpha = cf @ (a * t3 + b)
+        if abs(alpha[3]) < 1e-12 * np.max(np.abs(alpha)):
+            continue
+        if _closure_holds([-alpha[2] / alpha[3], -alpha[1] / alpha[3], t3, t4, t5], axes):
+            return True
+    return False
+
+
+def _closes_somewhere(f, x, y, m: sympy.Matrix, coords: sympy.Matrix, axes: Sequence[DualQuaternion]) -> bool:
+    """Whether the closure holds at generic complex points over ``f(t_5, t_6) = 0`` (6R).
+
+    At each point the null vector of ``M`` gives ``t_3, t_4`` and ``L_12`` gives ``t_1, t_2``;
+    a genuine component closes to rounding (``1e-8``), a spurious factor misses by order one.
+    Used only to tell the two apart where no candidate curve could be built.
     """
     h = [a.map(complex) for a in axes]
     coords_f = np.array(coords.evalf(), dtype=complex)
-    for t6 in (0.3141, -1.2718, 2.2361):
-        fx = sympy.Poly(f.subs(y, sympy.Rational(t6)), x)
-        for t5 in np.roots([complex(c) for c in fx.all_coeffs()]):
-            mm = np.array(m.subs({x: t5, y: t6}).evalf(), dtype=complex)
-            v = np.linalg.svd(mm)[2][-1].conj()
-            if abs(v[3]) < 1e-12 * np.max(np.abs(v)):
-                continue
-            t3, t4 = v[1] / v[3], v[2] / v[3]
-            z = (t6 + h[5]) * (t5 + h[4]) * (t4 + h[3]) * (t3 + h[2])
-            alpha = coords_f @ np.array(list(z), dtype=complex)
-            if abs(alpha[3]) < 1e-12 * np.max(np.abs(alpha)):
-                continue
-            joints = [-alpha[2] / alpha[3], -alpha[1] / alpha[3], t3, t4, t5, t6]
-            prod = DualQuaternion.scalar(1.0 + 0j)
-            for t, a in zip(joints, h):
-                prod = prod * (t - a)
-            size = max(abs(c) for c in prod)
-            if max(abs(c) for c in prod.coefficients[1:]) <= 1e-8 * size and abs(prod[0]) > 1e-8 * size:
-                return True
+    for t5, t6 in _screen_points(f, x, y):
+        mm = np.array(m.subs({x: t5, y: t6}).evalf(), dtype=complex)
+        v = np.linalg.svd(mm)[2][-1].conj()
+        if abs(v[3]) < 1e-12 * np.max(np.abs(v)):
+            continue
+        t3, t4 = v[1] / v[3], v[2] / v[3]
+        z = (t6 + h[5]) * (t5 + h[4]) * (t4 + h[3]) * (t3 + h[2])
+        alpha = coords_f @ np.array(list(z), dtype=complex)
+        if abs(alpha[3]) < 1e-12 * np.max(np.abs(alpha)):
+            continue
+        if _closure_holds([-alpha[2] / alpha[3], -alpha[1] / alpha[3], t3, t4, t5, t6], axes):
+            return True
     return False
 
 
