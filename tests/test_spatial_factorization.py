@@ -9,7 +9,6 @@ import itertools
 import numpy as np
 import pytest
 import sympy
-from sympy import Rational as R
 
 from linkage.spatial import DualQuaternion, MotionFactorizationError, linkage_from_factorizations, motion_factorization
 from linkage.spatial.chain import distances_from_connections

@@ -313,3 +313,17 @@ def test_theorem_19_a_by_the_degree_of_the_coupling_map(name):
     d = chain.distance_matrix()
     for i, j in itertools.combinations(range(1, chain.n + 1), 2):
         assert coupling_degree_and_span(chain, i, j)[0] == d[i - 1, j - 1]
+
+
+def test_mobility_of_a_7r_chain_and_what_is_not_decided():
+    """Six independent screws of seven joints: a smooth curve through the home pose (mobile); the
+    elimination stops at six joints, and float axes with dependent screws are not judged."""
+    rng = np.random.default_rng(77)
+    chain = RevoluteChain([rational_line(rng) for _ in range(7)])
+    assert chain.is_mobile() is True and chain.home_is_isolated() is False
+    with pytest.raises(NotImplementedError, match="n = 4, 5, 6"):
+        chain.configuration_curve()
+    a, b, g = goldberg_5r()
+    rounded = RevoluteChain([h.map(float) for h in g.axes])
+    with pytest.raises(NotImplementedError, match="mobility of this 5R chain"):
+        rounded.is_mobile()
