@@ -3,7 +3,8 @@
 Run ``python -m linkage.spatial.figures [output directory]`` (default ``docs/figures``).
 Writes ``spatial_bond_diagrams.png`` and, for the Bennett linkage of Example 1, a
 Goldberg 5R, Bricard's linkage (Example 13) and a 6R from a cubic motion polynomial,
-``NAME_poses.png`` (eight poses) and ``NAME.gif`` (an animation).
+``NAME_poses.png`` (eight poses) and ``NAME.gif`` (an animation beside its configuration
+curve).
 """
 
 from __future__ import annotations
@@ -110,8 +111,18 @@ def poses_figure(path: Path, chain, title: str, count: int = 8) -> None:
     plt.close(fig)
 
 
+def _angle(t: complex) -> float:
+    """The joint angle ``phi`` in ``[0, 2 pi)`` of ``t = cot(phi / 2)`` (``t = inf``: ``phi = 0``)."""
+    t = complex(t)
+    return 0.0 if np.isinf(abs(t)) else float(2 * np.arctan2(1.0, t.real))
+
+
 def animation(path: Path, chain, title: str, frames: int = 40) -> None:
-    """Write ``chain`` moving once around a real component of its curve to ``path`` (a GIF)."""
+    """Write ``chain`` moving once around a real component of its curve to ``path`` (a GIF).
+
+    Left the linkage in space, right its configuration curve in the angles of joints 1
+    and ``n`` (a torus, opened up) with the current configuration marked.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -119,14 +130,25 @@ def animation(path: Path, chain, title: str, frames: int = 40) -> None:
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     poses = curve_frames(chain, frames)
-    fig = plt.figure(figsize=(4.5, 4.5))
-    ax = fig.add_subplot(projection="3d")
+    dense = curve_frames(chain, 8 * frames)
+    fig = plt.figure(figsize=(8, 4))
+    ax = fig.add_subplot(1, 2, 1, projection="3d")
+    ax2 = fig.add_subplot(1, 2, 2)
+    n = chain.n
 
     def update(k):
         ax.cla()
         draw_linkage(ax, chain, poses[k], axis_length=1.5)
         _frame_axes(ax, chain, poses)
         ax.set_title(title)
+        ax2.cla()
+        ax2.plot([_angle(p[0]) for p in dense], [_angle(p[n - 1]) for p in dense], ".", ms=1.5, color="0.6")
+        ax2.plot([_angle(poses[k][0])], [_angle(poses[k][n - 1])], "o", color="C3")
+        ax2.set_xlim(0, 2 * np.pi)
+        ax2.set_ylim(0, 2 * np.pi)
+        ax2.set_xlabel("phi_1")
+        ax2.set_ylabel(f"phi_{n}")
+        ax2.set_title("configuration curve")
 
     FuncAnimation(fig, update, frames=len(poses)).save(path, writer=PillowWriter(fps=12))
     plt.close(fig)

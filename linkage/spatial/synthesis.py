@@ -26,15 +26,14 @@ curve's parameter.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import sympy
 
-from collections.abc import Sequence
-
 from .chain import RevoluteChain
 from .curve import T, ConfigurationCurve
-from .dualquat import DualQuaternion
+from .dualquat import DualQuaternion, is_inexact
 from .factorization import motion_factorization, polynomial_product
 
 __all__ = ["bennett_linkage", "goldberg", "goldberg_decomposition", "linkage_from_factorizations"]
@@ -65,12 +64,14 @@ def linkage_from_factorizations(
     polynomial = polynomial_product(*[[-g, one] for g in factors])
     ks = motion_factorization(polynomial[:-1], norm_factors=norm_factors)
     axes, joints = [], []
+    exact = not any(is_inexact(x) for g in factors for x in g)
     for g, sign in [(g, 1) for g in factors] + [(k, -1) for k in reversed(ks)]:
         c = g[0]
-        r = sympy.sqrt(sympy.nsimplify(g.quadratic_form() - c * c))  # N(t - g) = (t - c)^2 + r^2
+        r2 = g.quadratic_form() - c * c  # N(t - g) = (t - c)^2 + r^2
+        r = sympy.sqrt(r2) if exact else float(r2) ** 0.5
         if r == 0:
             raise ValueError(f"factor {g} is not a rotation (its vector part has zero norm)")
-        axes.append(((g - c) * (1 / r)).map(sympy.simplify))
+        axes.append(((g - c) * (1 / r)).map(sympy.simplify) if exact else (g - c) * (1 / r))
         joints.append(sign * (T - c) / r)
     return RevoluteChain(axes, curve=ConfigurationCurve.rational(joints))
 
@@ -93,7 +94,7 @@ def bennett_linkage(h1: DualQuaternion, h2: DualQuaternion, offset: Any) -> Revo
     """
     if offset == 0:
         raise ValueError("offset must be a nonzero real number (offset 0 gives back the same factors)")
-    c = sympy.nsimplify(offset)
+    c = offset if is_inexact(offset) else sympy.sympify(offset)  # a float stays a float: no guessed rational
     one = DualQuaternion.scalar(sympy.Integer(1), sympy.Integer(0))
     return linkage_from_factorizations([h1, c * one + h2], [(c * c + 1, -2 * c), (1, 0)])
 
