@@ -68,7 +68,7 @@ def run(n: int, L: float, T: float, precision: str, out: str, samples: int = 200
     h0, v0 = pole_start(chain)
     fp = PRECISIONS[precision]
     t0 = time.perf_counter()
-    motion = free_motion(chain, h0, v0, T, fp_type=fp, progress=progress)
+    motion = free_motion(chain, h0, v0, T, method="charts", fp_type=fp, progress=progress)
     t_chart = time.perf_counter() - t0
     sol = motion.solution
     ts = np.linspace(0, T, samples)

@@ -32,8 +32,8 @@ from .ensemble import EnsembleMotion, free_motions
 from .lyapunov import lyapunov_exponent, lyapunov_exponents
 from .time_factor import ChainTimeFactor
 
-__all__ = ["METHODS", "ChainMotion", "EnsembleMotion", "free_motion", "free_motions", "lyapunov_exponent",
-           "lyapunov_exponents"]
+__all__ = ["AUTO", "METHODS", "ChainMotion", "EnsembleMotion", "choose_method", "free_motion", "free_motions",
+           "lyapunov_exponent", "lyapunov_exponents"]
 
 
 class ChainMotion:
@@ -148,6 +148,8 @@ def chart_metric(chain: Chain) -> InducedMetric | None:
 
 #: The free-motion methods: in the atlas of suspension charts, or in hinge coordinates with rod constraints.
 METHODS = ("charts", "hinges")
+#: ``free_motion``'s default: :func:`choose_method` picks one of :data:`METHODS` by measurement.
+AUTO = "auto"
 
 
 def _default_velocity(chain: Chain, kwargs: dict) -> ConstrainedVelocity | None:
@@ -174,6 +176,33 @@ def _method_options(method: str) -> tuple[str, ...]:
                         and name not in ("metric", "progress", "carry", "project_velocity", "tangent_tol")))
 
 
+#: A chain whose dominant side falls short of the others' sum by less than this share of the perimeter is nearly
+#: stretched: there the hinge method's rods carry tensions ``~ E / gap`` and it loses digits (``docs/methods.md``).
+STRETCHED_GAP = 1e-3
+
+
+def choose_method(chain: Chain, options: dict[str, Any]) -> str:
+    """The method that ``method="auto"`` stands for, for ``chain`` and ``free_motion``'s other options.
+
+    The method whose solver alone takes an option given (``stepper``, ``form``, ``q_out``: the charts;
+    ``stabilisation``, ``rate``, ``compact_mode``, ...: the hinges); else ``"charts"``
+    where the chain has an atlas and is nearly stretched (its dominant side within :data:`STRETCHED_GAP` of the
+    perimeter from the others' sum: the top of a sphere range, where the hinge method's velocities collect
+    errors that no check sees); otherwise ``"hinges"``, the faster at every size and precision measured (6-17x
+    at equal error 1e-10 in float64 for n = 4..12, 6.7x in real128 at n = 4: ``docs/methods.md``, "which method
+    when").
+    """
+    charts, hinges, given = set(_method_options("charts")), set(_method_options("hinges")), set(options)
+    if given & (charts - hinges):
+        return "charts"
+    if given & (hinges - charts):
+        return "hinges"
+    sides = np.append(chain.lengths, chain.L)
+    perimeter = float(np.sum(sides))
+    stretched = (perimeter - 2 * float(np.max(sides))) / perimeter < STRETCHED_GAP
+    return "charts" if stretched and chain.has_atlas else "hinges"
+
+
 def _check_options(method: str, options: dict[str, Any]) -> None:
     """``TypeError`` naming an option that the method's solver does not take, with the options it does take."""
     taken = _method_options(method)
@@ -190,7 +219,7 @@ def free_motion(
     velocity0: ArrayLike,
     t_final: float,
     *,
-    method: str = "charts",
+    method: str = AUTO,
     tangent_tol: float = 1e-9,
     project_velocity: bool = False,
     progress: ProgressArgument = None,
@@ -236,7 +265,9 @@ def free_motion(
     t_final
         Final time (finite, nonzero; negative integrates backward).
     method
-        ``"charts"`` (default) or ``"hinges"``.
+        ``"hinges"``, ``"charts"`` or ``"auto"`` (default): :func:`choose_method`, the hinges (the faster by
+        measurement at every size and precision) except for a nearly stretched chain with an atlas, or where an
+        option only the charts take is given.
     tangent_tol
         Tolerance of the tangency check.
     project_velocity
@@ -253,8 +284,10 @@ def free_motion(
         for ``"hinges"`` (``fp_type``, ``tol``, ``stabilisation``, ``rate``,
         ``projection_interval``, ``compact_mode``, ``dense``, ``t_eval``, ``throw``).
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if method not in (*METHODS, AUTO):
+        raise ValueError(f"method must be one of {(*METHODS, AUTO)}, got {method!r}")
+    if method == AUTO:
+        method = choose_method(chain, kwargs)
     _check_options(method, kwargs)
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
     # velocity0 is tangent to tangent_tol (checked above): the solvers' own projection only removes rounding

@@ -36,7 +36,7 @@ T = 30.0
 def motion():
     chain = Chain(4, 3.5)  # near the top of (2, 4): the path meets the charts' poles often
     h0, v0 = pole_start(chain)
-    m = free_motion(chain, h0, v0, T)
+    m = free_motion(chain, h0, v0, T, method="charts")
     assert m.n_switches >= 3  # the pictures below have switches to mark
     return m
 
@@ -162,7 +162,7 @@ def test_the_sphere_path_needs_four_rods_and_a_3d_axes(motion):
     with pytest.raises(ValueError, match="ax must be a 3-d Axes"):
         draw_sphere_path(Figure().add_subplot(), motion)
     chain3 = Chain(3, 2.0)
-    circle = free_motion(chain3, *pole_start(chain3), 1.0)
+    circle = free_motion(chain3, *pole_start(chain3), 1.0, method="charts")
     with pytest.raises(ValueError, match="needs n >= 4 .* got n = 3"):
         draw_sphere_path(Figure().add_subplot(projection="3d"), circle)
 

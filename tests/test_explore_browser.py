@@ -116,7 +116,7 @@ def test_drag_and_flick_plays_free_motion(page: Any, figures: Path) -> None:
     launched = page.evaluate(f"{explorer}.lastLaunch()")
     h0, v0 = complex_of(launched["hinges"]), complex_of(launched["velocity"])
     assert np.max(CHAIN.closure_residual(h0)) < 1e-12
-    reference = free_motion(CHAIN, h0, v0, WINDOW, t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
+    reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts", t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
     seen = play_and_compare(page, reference, until=WINDOW)
     page.evaluate(f"{explorer}.pause()")
     page.screenshot(path=str(figures / "explorer.png"))
@@ -142,7 +142,7 @@ def test_a_launch_over_the_pole_shows_its_switch(page: Any, figures: Path) -> No
     explorer = "window.linkageExplorer"
     page.evaluate(f"{explorer}.setSpeed(2)")
     page.evaluate(f"([h, v]) => {explorer}.launch({{hinges: h, velocity: v}})", [as_pairs(h0), as_pairs(v0)])
-    reference = free_motion(CHAIN, h0, v0, WINDOW, t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
+    reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts", t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
     first = reference.solution.switches[0].time
     # paused by the page itself as soon as it shows a time past the first switch (a test polling from outside
     # could see it only later, on a loaded machine even past the window)
@@ -189,7 +189,7 @@ def test_a_bad_launch_shows_its_error_and_the_page_goes_on(page: Any) -> None:
 
 def test_a_replay_file_plays_without_a_server(page: Any, tmp_path: Path, figures: Path) -> None:
     h0, v0 = pole_start()
-    path = free_motion(CHAIN, h0, v0, 20.0).to_html(tmp_path / "replay.html")
+    path = free_motion(CHAIN, h0, v0, 20.0, method="charts").to_html(tmp_path / "replay.html")
     context = page.context.browser.new_context(viewport={"width": 1200, "height": 760})
     replay = context.new_page()
     requests: list[str] = []

@@ -21,7 +21,7 @@ def motion():
     chart0 = chain.atlas().charts[0]
     a0, c0 = np.array([1.2, 0.3]), np.array([1.0, 0.2])  # over the pole phi_4 = pi/2 of chart 0
     v0 = chain.from_point(chart0.tangent_vector(a0, c0))
-    return free_motion(chain, chart0.hinges(a0), v0 / np.sqrt(2 * chain.kinetic_energy(v0)), 10.0)
+    return free_motion(chain, chart0.hinges(a0), v0 / np.sqrt(2 * chain.kinetic_energy(v0)), 10.0, method="charts")
 
 
 def test_the_replay_holds_the_motion_and_three_js(motion, tmp_path: Path) -> None:
@@ -46,7 +46,7 @@ def test_the_replay_needs_dense_output(tmp_path: Path) -> None:
     chain = Chain(4, 3.0)
     chart0 = chain.atlas().charts[0]
     a0, c0 = np.array([0.3, 0.2]), np.array([1.0, 0.2])
-    sparse = free_motion(chain, chart0.hinges(a0), chain.from_point(chart0.tangent_vector(a0, c0)), 1.0, dense=False)
+    sparse = free_motion(chain, chart0.hinges(a0), chain.from_point(chart0.tangent_vector(a0, c0)), 1.0, method="charts", dense=False)
     with pytest.raises(ValueError, match="dense"):
         sparse.to_html(tmp_path / "sparse.html")
     with pytest.raises(ValueError, match="samples"):

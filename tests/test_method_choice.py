@@ -1,0 +1,50 @@
+"""free_motion's default method, ``"auto"`` (:func:`linkage.motion.choose_method`): the hinges, the faster by
+measurement, except for a nearly stretched chain with an atlas, where the hinge method loses digits, and where an
+option only one method takes is given."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from linkage import Chain
+from linkage.motion import STRETCHED_GAP, choose_method, free_motion
+from linkage.sampling import sample_starts
+from manifold.steppers import TaylorStepper
+
+
+@pytest.mark.parametrize("chain, options, expected", [
+    (Chain(4, 3.0), {}, "hinges"),
+    (Chain(7, 5.5, hinge_masses=np.geomspace(1e-3, 1e3, 6)), {}, "hinges"),
+    (Chain(4, 4 - 1e-4), {}, "charts"),  # nearly stretched: gap 1e-4 / 8 of the perimeter
+    (Chain([1.0, 5.0, 1.2, 0.9], 1.905), {}, "charts"),  # a link dominant, nearly stretched: gap 5e-3 of 9.9
+    (Chain([1.0, 5.0, 1.2, 0.9], 2.5), {}, "hinges"),  # a link dominant, not stretched
+    (Chain(4, 3.0), {"stepper": TaylorStepper()}, "charts"),  # only the chart solver takes a stepper
+    (Chain(4, 4 - 1e-4), {"compact_mode": True}, "hinges"),  # only the hinge solver takes compact_mode
+    (Chain(4, 3.0), {"tol": 1e-12, "fp_type": "longdouble"}, "hinges"),  # both take these
+])
+def test_the_method_that_auto_stands_for(chain, options, expected):
+    assert choose_method(chain, options) == expected
+
+
+def test_the_threshold_is_a_share_of_the_perimeter():
+    # unit rods, n = 4: perimeter 4 + L, gap 4 - L
+    below, above = 4 - 0.5 * STRETCHED_GAP * 8, 4 - 2 * STRETCHED_GAP * 8
+    assert choose_method(Chain(4, below), {}) == "charts" and choose_method(Chain(4, above), {}) == "hinges"
+
+
+def test_the_default_runs_the_chosen_method_and_equals_it():
+    for chain, kind in ((Chain(5, 4.2), "constrained"), (Chain(5, 5 - 1e-4), "sundman")):
+        h, v = sample_starts(chain, 1, 1.0, np.random.default_rng(2))
+        T = 0.5
+        default = free_motion(chain, h[0], v[0], T, t_eval=[T])
+        named = free_motion(chain, h[0], v[0], T, method=choose_method(chain, {}), t_eval=[T])
+        assert kind in default.solution.method
+        assert np.array_equal(default.hinges, named.hinges)
+
+
+def test_a_bad_method_names_the_choices():
+    chain = Chain(4, 3.0)
+    h, v = sample_starts(chain, 1, 1.0, np.random.default_rng(0))
+    with pytest.raises(ValueError, match=r"method must be one of \('charts', 'hinges', 'auto'\)"):
+        free_motion(chain, h[0], v[0], 1.0, method="fastest")
