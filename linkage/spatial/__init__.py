@@ -10,7 +10,7 @@ from .curve import ConfigurationCurve, Place
 from .dualquat import DualNumber, DualQuaternion
 from .elimination import ReducibleCurveError, RigidLinkageError
 from .factorization import MotionFactorizationError
-from .synthesis import bennett_linkage, goldberg, goldberg_decomposition, linkage_from_factorizations
+from .synthesis import bennett_linkage, double_bennett, goldberg, goldberg_decomposition, linkage_from_factorizations
 
 __all__ = [
     "Bond",
@@ -25,6 +25,7 @@ __all__ = [
     "bennett_linkage",
     "connection_numbers",
     "distances_from_connections",
+    "double_bennett",
     "goldberg",
     "goldberg_decomposition",
     "linkage_from_factorizations",

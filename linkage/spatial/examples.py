@@ -1,4 +1,5 @@
-"""The linkages of "The Theory of Bonds" (Examples 1, 2, 3, 11, 12, 13) as ``RevoluteChain`` objects.
+"""The linkages of "The Theory of Bonds" (Examples 1, 2, 3, 11, 12, 13, Figures 1(c) and 4) as
+``RevoluteChain`` objects.
 
 Examples 1-3 and 13 are given by their axes alone (the configuration curve is
 computed).  Examples 11 and 12 are built as the paper describes, by factoring
@@ -12,7 +13,7 @@ import sympy
 from sympy import Rational as R
 
 from .chain import RevoluteChain, motion_factorization
-from .synthesis import bennett_linkage, goldberg, linkage_from_factorizations
+from .synthesis import bennett_linkage, double_bennett, goldberg, linkage_from_factorizations
 from .curve import T, ConfigurationCurve
 from .dualquat import DualQuaternion
 
@@ -20,6 +21,7 @@ __all__ = [
     "bennett",
     "bricard_example_13",
     "cubic_6r",
+    "double_bennett_6r",
     "example_11",
     "example_12",
     "example_11_axes",
@@ -147,3 +149,22 @@ def cubic_6r() -> RevoluteChain:
     h3 = DualQuaternion.from_line([1, 0, 2], [R(2, 3), R(2, 3), R(1, 3)])
     factors = [h1, one + h2, -one + h3]
     return linkage_from_factorizations(factors, [(2, 2), (2, -2), (1, 0)])
+
+
+def double_bennett_6r() -> tuple[RevoluteChain, RevoluteChain, RevoluteChain]:
+    """Waldron's double Bennett linkage of Figure 4 (the paper gives no axes for it).
+
+    The shared axis ``h`` passes through ``(0, 1, 2)`` with direction ``(2, -1, 2)/3``;
+    ``bennett_a`` is :func:`~linkage.spatial.synthesis.bennett_linkage` of ``h`` and the
+    line through ``(1, -1, 1/2)`` with direction ``(4, 1, -8)/9`` (offset ``3``), turned
+    to end at ``h``; ``bennett_b`` is that of ``h`` and the line through ``(2, 0, -1)``
+    with direction ``(1, 2, 2)/3`` (offset ``-1/2``).  Returns
+    ``(bennett_a, bennett_b, chain)`` with ``bennett_a = (h1, h2, h3, h)``,
+    ``bennett_b = (h, h4, h5, h6)`` and ``chain = double_bennett(bennett_a, bennett_b)``.
+    """
+    h = DualQuaternion.from_line([0, 1, 2], [R(2, 3), R(-1, 3), R(2, 3)])
+    a = bennett_linkage(h, DualQuaternion.from_line([1, -1, R(1, 2)], [R(4, 9), R(1, 9), R(-8, 9)]), 3)
+    b = bennett_linkage(h, DualQuaternion.from_line([2, 0, -1], [R(1, 3), R(2, 3), R(2, 3)]), R(-1, 2))
+    bennett_a = RevoluteChain([a.axes[1], a.axes[2], a.axes[3], a.axes[0]])
+    bennett_b = RevoluteChain(b.axes)
+    return bennett_a, bennett_b, double_bennett(bennett_a, bennett_b)

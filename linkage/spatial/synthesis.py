@@ -1,4 +1,5 @@
-"""Mobile chains built from motion polynomials: Bennett and 2d-R linkages, Goldberg's 5R.
+"""Mobile chains built from motion polynomials: Bennett and 2d-R linkages, Goldberg's 5R,
+Waldron's double Bennett 6R.
 
 *Factorisation linkages* (refs. [8, 10] of [HSS]): a motion polynomial ``C`` of degree
 ``d`` factors as ``(t - g_1) ... (t - g_d)`` for every ordering of its norm's quadratic
@@ -22,6 +23,23 @@ so the 5R product ``(a_1 - h_1)(a_2 - h_2)(tau - h_3)(b_4 - h_4)(b_5 - h_5)`` is
 ``tau = (a_3 b_3 - 1) / (a_3 + b_3)``) and ``b_6 = -a_6`` (then
 ``(a_6 + h_6)(-a_6 + h_6) = -(a_6^2 + 1)``).  The removed joint's ``a_6`` is the
 curve's parameter.
+
+*Waldron's double Bennett linkage* (named, not described, in [HSS] Example 11, which
+cites Dietmaier's thesis, ref. [5]; the construction is Waldron's hybrid of the
+mechanism literature).  Two Bennett linkages ``(h_1, h_2, h_3, h)`` and
+``(h, h_4, h_5, h_6)`` share the *line* of one axis ``h`` (not a link); at ``h`` the
+two links of the first linkage are welded to those of the second
+(``(h_3, h) + (h, h_4)`` and ``(h_6, h) + (h, h_1)``), which removes the joint ``h``
+and leaves the 6R chain ``(h_1, ..., h_6)``.  With ``a_k``, ``b_k`` the joint values of
+the two Bennett linkages, closure of each gives
+
+    (a_1 - h_1)(a_2 - h_2)(a_3 - h_3) ~ (a_h + h),   (b_4 - h_4)(b_5 - h_5)(b_6 - h_6) ~ (b_h + h),
+
+and ``(a_h + h)(b_h + h) = a_h b_h - 1 + (a_h + b_h) h`` is real exactly when
+``b_h = -a_h``: then the welded links ``o_3`` and ``o_6`` turn about ``h`` relative to
+each other by the same rotation ``~ (a_h - h)`` through either Bennett linkage.  The
+curve is the pair of Bennett curves glued along ``b_h = -a_h``, parametrised by
+``t = a_h``.
 """
 
 from __future__ import annotations
@@ -36,7 +54,7 @@ from .curve import T, ConfigurationCurve
 from .dualquat import DualQuaternion, is_inexact
 from .factorization import motion_factorization, polynomial_product
 
-__all__ = ["bennett_linkage", "goldberg", "goldberg_decomposition", "linkage_from_factorizations"]
+__all__ = ["bennett_linkage", "double_bennett", "goldberg", "goldberg_decomposition", "linkage_from_factorizations"]
 
 
 def linkage_from_factorizations(
@@ -147,6 +165,56 @@ def goldberg(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> RevoluteChai
     b3, b4, b5, _ = (sympy.cancel(e.subs(T, -T)) for e in curves[1])  # b_6 = -a_6 = -t
     tau = sympy.cancel((a3 * b3 - 1) / (a3 + b3))
     return RevoluteChain([h1, h2, h3, b_axes[1], b_axes[2]], curve=ConfigurationCurve.rational([a1, a2, tau, b4, b5]))
+
+
+def double_bennett(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> RevoluteChain:
+    """Waldron's double Bennett 6R linkage ``(h_1, ..., h_6)`` from two Bennett linkages.
+
+    Parameters
+    ----------
+    bennett_a
+        ``(h_1, h_2, h_3, h)``, a Bennett linkage with rational axes.
+    bennett_b
+        ``(h', h_4, h_5, h_6)`` with ``h' = +-h`` (the same line: the two linkages share
+        the axis ``h``, and at ``h`` their links are welded together).
+
+    Returns
+    -------
+    RevoluteChain
+        The 6R chain with the configuration curve of the module docstring,
+        ``t_1, t_2, t_3`` those of ``bennett_a`` and ``t_4, t_5, t_6`` those of
+        ``bennett_b``, glued along ``b_h = -a_h = -t``; the constructor checks the
+        closure condition on it exactly.
+
+    Raises
+    ------
+    ValueError
+        If either chain is not a 4R chain with a rational configuration curve (a Bennett
+        linkage), the axes ``bennett_a.axes[3]`` and ``bennett_b.axes[0]`` are not the
+        same line, or the 6R chain has two equal consecutive axes (``h_3 = +-h_4`` or
+        ``h_6 = +-h_1``).
+    """
+    for name, chain in (("bennett_a", bennett_a), ("bennett_b", bennett_b)):
+        if not isinstance(chain, RevoluteChain) or chain.n != 4:
+            raise ValueError(f"{name} must be a 4R RevoluteChain (a Bennett linkage); got {chain!r}")
+    h1, h2, h3, h = bennett_a.axes
+    if bennett_b.axes[0] != h and bennett_b.axes[0] != -h:
+        raise ValueError(
+            f"bennett_b must share the axis h = bennett_a.axes[3] = {h}: bennett_b.axes[0] = {bennett_b.axes[0]} "
+            f"is not +-h"
+        )
+    h4, h5, h6 = bennett_b.axes[1:]
+    # Both relabelled with the shared axis last (h oriented as in bennett_a), so that the
+    # elimination parametrises each curve by the joint at h: t = a_h, t = b_h.
+    curves = []
+    for name, axes in (("bennett_a", [h1, h2, h3, h]), ("bennett_b", [h4, h5, h6, h])):
+        curve = RevoluteChain(axes).configuration_curve()
+        if not curve.is_rational:
+            raise ValueError(f"{name} has a curve of genus > 0: it is a planar or spherical 4R, not a Bennett linkage")
+        curves.append([sympy.cancel(e) for e in curve.expressions()])
+    a1, a2, a3, _ = curves[0]
+    b4, b5, b6 = (sympy.cancel(e.subs(T, -T)) for e in curves[1][:3])  # b_h = -a_h = -t
+    return RevoluteChain([h1, h2, h3, h4, h5, h6], curve=ConfigurationCurve.rational([a1, a2, a3, b4, b5, b6]))
 
 
 def goldberg_decomposition(chain: RevoluteChain) -> tuple[RevoluteChain, RevoluteChain]:
