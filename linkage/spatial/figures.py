@@ -2,8 +2,8 @@
 
 Run ``python -m linkage.spatial.figures [output directory]`` (default ``docs/figures``).
 Writes ``spatial_bond_diagrams.png`` and, for the Bennett linkage of Example 1, a
-Goldberg 5R, Bricard's linkage (Example 13) and a 6R from a cubic motion polynomial,
-``NAME_poses.png`` (eight poses) and ``NAME.gif`` (an animation beside its configuration
+Goldberg 5R, Bricard's linkage (Example 13), a 6R from a cubic motion polynomial and
+Waldron's double Bennett linkage, ``NAME_poses.png`` (eight poses) and ``NAME.gif`` (an animation beside its configuration
 curve).
 """
 
@@ -19,6 +19,7 @@ from .examples import (
     bennett,
     bricard_example_13,
     cubic_6r,
+    double_bennett_6r,
     example_11,
     example_12,
     goldberg_5r,
@@ -28,7 +29,8 @@ from .examples import (
 
 
 def bond_diagrams(path: Path) -> None:
-    """Write the bond diagrams of Examples 1, 2, 3, 11, 12, 13, a Goldberg 5R and a cubic 6R to ``path``."""
+    """Write the bond diagrams of Examples 1, 2, 3, 11, 12, 13, a Goldberg 5R, a cubic 6R and a double
+    Bennett 6R to ``path``."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -43,8 +45,9 @@ def bond_diagrams(path: Path) -> None:
         ("Goldberg 5R (Fig. 1c)", goldberg_5r()[2]),
         ("Bricard (Ex. 13)", bricard_example_13()),
         ("6R from a cubic", cubic_6r()),
+        ("double Bennett", double_bennett_6r()[2]),
     ]
-    fig, axs = plt.subplots(2, 4, figsize=(12.8, 6.8))
+    fig, axs = plt.subplots(3, 3, figsize=(9.6, 10.2))
     axs = axs.ravel()
     for ax, (title, chain) in zip(axs, chains):
         draw_bond_diagram(ax, chain.n, chain.connections(), title=title)
@@ -165,6 +168,7 @@ def main(argv: list[str]) -> None:
         ("goldberg", goldberg_5r()[2], "Goldberg 5R linkage"),
         ("bricard", bricard_example_13(), "Bricard's linkage (Example 13)"),
         ("cubic_6r", cubic_6r(), "6R from a cubic motion polynomial"),
+        ("double_bennett", double_bennett_6r()[2], "Waldron's double Bennett linkage"),
     ]
     for name, chain, title in moving:
         poses_figure(out / f"{name}_poses.png", chain, f"{title}: poses along a real component")
