@@ -42,7 +42,7 @@ import pytest
 import sympy
 from sympy import Rational as R
 
-from linkage.spatial import DualQuaternion, RevoluteChain, double_bennett
+from linkage.spatial import DualQuaternion, RevoluteChain, RigidLinkageError, double_bennett
 from linkage.spatial.examples import double_bennett_6r, spherical_four_bar
 from linkage.spatial.synthesis import bennett_linkage
 
@@ -204,6 +204,9 @@ def test_refusals(fixed):
         double_bennett(a, RevoluteChain([*b.axes[1:], b.axes[0]]))
     with pytest.raises(ValueError, match="4R RevoluteChain"):
         double_bennett(a, chain)
+    moved = RevoluteChain([*b.axes[:3], DualQuaternion.from_line([1, 2, 3], [R(2, 3), R(1, 3), R(2, 3)])])
+    with pytest.raises(RigidLinkageError, match="bennett_b is not a Bennett linkage: the chain is rigid"):
+        double_bennett(a, moved)
     sph = spherical_four_bar()  # shares no line with a, and is not a Bennett linkage either
     with pytest.raises(ValueError, match="genus > 0"):
         double_bennett(sph, RevoluteChain([sph.axes[3], sph.axes[0], sph.axes[1], sph.axes[2]]))

@@ -190,9 +190,9 @@ def double_bennett(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> Revolu
     ------
     ValueError
         If either chain is not a 4R chain with a rational configuration curve (a Bennett
-        linkage), the axes ``bennett_a.axes[3]`` and ``bennett_b.axes[0]`` are not the
-        same line, or the 6R chain has two equal consecutive axes (``h_3 = +-h_4`` or
-        ``h_6 = +-h_1``).
+        linkage; ``RigidLinkageError`` for a rigid one), the axes ``bennett_a.axes[3]`` and
+        ``bennett_b.axes[0]`` are not the same line, or the 6R chain has two equal
+        consecutive axes (``h_3 = +-h_4`` or ``h_6 = +-h_1``).
     """
     for name, chain in (("bennett_a", bennett_a), ("bennett_b", bennett_b)):
         if not isinstance(chain, RevoluteChain) or chain.n != 4:
@@ -208,7 +208,10 @@ def double_bennett(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> Revolu
     # elimination parametrises each curve by the joint at h: t = a_h, t = b_h.
     curves = []
     for name, axes in (("bennett_a", [h1, h2, h3, h]), ("bennett_b", [h4, h5, h6, h])):
-        curve = RevoluteChain(axes).configuration_curve()
+        try:
+            curve = RevoluteChain(axes).configuration_curve()
+        except ValueError as err:  # rigid or reducible: the same error type, naming the argument
+            raise type(err)(f"{name} is not a Bennett linkage: {err}") from err
         if not curve.is_rational:
             raise ValueError(f"{name} has a curve of genus > 0: it is a planar or spherical 4R, not a Bennett linkage")
         curves.append([sympy.cancel(e) for e in curve.expressions()])
