@@ -175,10 +175,10 @@ def test_denavit_hartenberg_parameters_as_the_paper_states(fixed):
         assert all(s == 0 for s in denavit_hartenberg(bennett.axes)[2])
 
 
-def test_ten_random_double_bennett_linkages():
+def test_twenty_random_double_bennett_linkages():
     rng = np.random.default_rng(4)
     worst = 0.0
-    for _ in range(10):
+    for _ in range(20):
         chain = random_double_bennett(rng)
         worst = max(worst, closure_residual(chain, np.linspace(-3.3, 3.1, 9)))
         assert chain.connections() == CONNECTIONS
