@@ -206,6 +206,65 @@ def test_space_of_other_chains_is_named(client: TestClient, lengths: int, L: flo
     assert np.all(np.abs(got["torus"]["angles"]) <= np.pi)
 
 
+def wrapped(x: np.ndarray) -> np.ndarray:
+    return np.angle(np.exp(1j * x))
+
+
+def test_a_line_of_sight_through_the_cube_poses_the_configuration_under_it(client: TestClient) -> None:
+    """n = 4: a line of sight through a configuration's point of the cube of rod angles, from a configuration
+    nearby, gives back that configuration; the torus payload's configurations are those of its angles."""
+    chart0 = CHAIN.atlas().charts[0]
+    space = client.post("/api/space", json={"lengths": 4, "L": 3.0, "resolution": 8}).json()["torus"]
+    assert np.allclose(CHAIN.angles(complex_of(space["hinges"]))[:, :3], space["angles"], atol=1e-12)
+    for a, seed, d in [((0.7, -0.2), (0.6, -0.1), (2.2, 1.6, 2.6)), ((-0.3, 2.0), (-0.25, 2.1), (-1.0, 0.3, 0.2))]:
+        target, start = chart0.hinges(np.array(a)), chart0.hinges(np.array(seed))
+        angles = CHAIN.angles(target)[:3] + 0.4 * np.array(d)  # another point of the same line
+        got = client.post("/api/pose", json={"lengths": 4, "L": 3.0, "angles": angles.tolist(), "direction": d,
+                                             "hinges": as_pairs(start)})
+        assert got.status_code == 200, got.text
+        pose = complex_of(got.json()["hinges"])
+        assert np.max(CHAIN.closure_residual(pose)) <= 1e-12
+        assert np.max(np.abs(pose - target)) < 1e-9
+
+
+def test_a_point_of_the_torus_poses_the_nearest_configuration(client: TestClient) -> None:
+    """n = 3: the pose nearest a point of the torus T^2 is the nearest of 200 001 points of chart 0's circle; for
+    n = 5 (S^3 seen through three rod angles) the line of sight meets the picture, and the pose lies on it."""
+    c3 = Chain(3, 2.0)
+    circle = c3.atlas().charts[0].hinges(np.linspace(-np.pi, np.pi, 200_001)[:, None])
+    point = np.array([0.9, -0.2])
+    dense = np.linalg.norm(wrapped(c3.angles(circle)[:, :2] - point), axis=1)
+    start = circle[np.argmin(dense) + 20_000]  # a tenth of the circle away from the nearest point
+    got = client.post("/api/pose", json={"lengths": 3, "L": 2.0, "angles": point.tolist(), "hinges": as_pairs(start)})
+    pose = complex_of(got.json()["hinges"])
+    assert np.max(c3.closure_residual(pose)) <= 1e-12
+    assert abs(np.linalg.norm(wrapped(c3.angles(pose)[:2] - point)) - dense.min()) < 1e-9
+    c5 = Chain(5, 3.5)
+    h = c5.diagonal_space().sample(2, np.random.default_rng(3)).hinges
+    d = np.array([0.2, -1.0, 0.5])
+    got = client.post("/api/pose", json={"lengths": 5, "L": 3.5, "angles": c5.angles(h[1])[:3].tolist(),
+                                         "direction": d.tolist(), "hinges": as_pairs(h[0])})
+    pose = complex_of(got.json()["hinges"])
+    off = wrapped(c5.angles(pose)[:3] - c5.angles(h[1])[:3])
+    assert np.max(c5.closure_residual(pose)) <= 1e-12 and np.linalg.norm(off - (off @ d) / (d @ d) * d) < 1e-12
+
+
+def test_malformed_poses_name_their_field(client: TestClient) -> None:
+    h = as_pairs(CHAIN.atlas().charts[0].hinges(np.array([0.4, 0.4])))
+    chain = {"lengths": 4, "L": 3.0}
+    for request, field in [({}, "sphere"), ({"sphere": [1, 0, 0], "angles": [0, 0, 0], "hinges": h}, "sphere"),
+                           ({"angles": [0, 0, 0]}, "hinges"), ({"angles": [], "hinges": h}, "angles"),
+                           ({"angles": [0] * 5, "hinges": h}, "angles"), ({"angles": "x", "hinges": h}, "angles"),
+                           ({"angles": [0, math.nan, 0], "hinges": h}, "angles"),
+                           ({"angles": [0, 0, 0], "direction": [0, 0, 0], "hinges": h}, "direction"),
+                           ({"angles": [0, 0, 0], "direction": [1, 0], "hinges": h}, "direction"),
+                           ({"angles": [0, 0, 0], "hinges": as_pairs(complex_of(h) + 0.1)}, "hinges"),
+                           ({"sphere": [1, 0, 0], "hinges": h}, "hinges")]:
+        answer = client.post("/api/pose", content=json.dumps({**chain, **request}))
+        assert answer.status_code == 400, (request, answer.text)
+        assert answer.json()["field"].split("[")[0] == field, (request, answer.json())
+
+
 def test_drag_keeps_the_chain_on_its_constraints(client: TestClient) -> None:
     h, v = random_start(9)
     other = random_start(11)[0]

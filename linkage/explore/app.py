@@ -7,7 +7,7 @@ Routes (JSON in, JSON out; see ``docs/explorer.md``):
 * ``POST /api/motion`` a motion (:func:`.protocol.motion_request`, :func:`.protocol.solve_motion`);
 * ``POST /api/space`` the configuration space's geometry (:func:`.space.space_payload`);
 * ``POST /api/project`` a dragged hinge projected onto the constraints, or a velocity onto the tangent space;
-* ``POST /api/pose`` the configuration at a point of chart 0's sphere;
+* ``POST /api/pose`` the configuration at a point of chart 0's sphere, or under a point of the torus of rod angles;
 * ``WS /api/stream`` a motion streamed window by window, each window solved when the page asks for it.
 
 Solves run in worker threads, at most ``workers`` at once (default: the number of cores), so the event loop
@@ -42,7 +42,7 @@ except ImportError as err:  # pragma: no cover - the message is the point
 from .protocol import (CHAIN_FIELDS, MOTION_FIELDS, PRECISIONS, Cancelled, Limits, MotionRequest, RequestError,
                        as_pairs, check_fields, drag_hinge, motion_payload, motion_request, parse_chain, parse_complex,
                        parse_configuration, solve_motion, tangent_velocity, read_integer, read_number, read_numbers)
-from .space import pose_from_sphere, space_payload
+from .space import pose_from_angles, pose_from_sphere, space_payload
 
 __all__ = ["STATIC", "ServerConfig", "create_app"]
 
@@ -154,8 +154,25 @@ def create_app(config: ServerConfig | None = None) -> Starlette:
         return out
 
     async def pose(body: Any) -> dict[str, Any]:
-        body = check_fields(body, (*CHAIN_FIELDS, "sphere"), ("lengths", "L", "sphere"))
+        body = check_fields(body, (*CHAIN_FIELDS, "sphere", "angles", "direction", "hinges"), ("lengths", "L"))
         chain = parse_chain(body, limits)
+        if ("sphere" in body) == ("angles" in body):
+            raise RequestError("sphere", "give either 'sphere' (a point of chart 0's sphere) or 'angles' (rod angles "
+                                         "with the configuration 'hinges' to start from), not both or neither")
+        if "angles" in body:
+            if "hinges" not in body:
+                raise RequestError("hinges", "is required with 'angles': the configuration to start from")
+            hinges = parse_configuration(chain, "hinges", body["hinges"])
+            angles = body["angles"]
+            if not isinstance(angles, list) or not 1 <= len(angles) <= chain.n:
+                raise RequestError("angles", f"must be a list of 1 to n = {chain.n} rod angles, got {angles!r}")
+            target = read_numbers("angles", angles)
+            direction = read_numbers("direction", body["direction"], len(angles)) if "direction" in body else None
+            if direction is not None and not np.any(direction):
+                raise RequestError("direction", "must be a nonzero vector (a line of sight)")
+            return {"hinges": as_pairs(await in_worker(pose_from_angles, chain, hinges, target, direction))}
+        if "direction" in body or "hinges" in body:
+            raise RequestError("direction" if "direction" in body else "hinges", "is read only with 'angles'")
         point = read_numbers("sphere", body["sphere"], chain.n - 1)
         if not np.any(point):
             raise RequestError("sphere", "must be a nonzero point (it is read by its direction)")

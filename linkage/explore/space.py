@@ -10,6 +10,9 @@
   cube ``T^3 = [-pi, pi]^3`` (the torus ``T^2`` for ``n = 3``): the sphere's mesh vertices for ``n = 4``, the
   chart-0 circle for ``n = 3``, else configurations sampled uniformly in the diagonal coordinates
   (:meth:`linkage.diagonals.DiagonalSpace.sample`, any lengths), a projection named as such.
+* A point dragged in either picture poses the chain: :func:`pose_from_sphere` inverts chart 0's picture, and
+  :func:`pose_from_angles` finds the configuration whose first rod angles lie on the pointer's line of sight
+  through the cube (or nearest to a point of the torus).
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from ..chain import Chain
 from ..geometry import tangent_basis
 from .protocol import as_pairs
 
-__all__ = ["STIFFNESS_DIRECTIONS", "largest_stiffness", "pose_from_sphere", "space_payload"]
+__all__ = ["STIFFNESS_DIRECTIONS", "largest_stiffness", "pose_from_angles", "pose_from_sphere", "space_payload"]
 
 
 #: Directions over half a turn of the tangent plane at which the stiffness ``|II(v, v)|`` is read for its largest.
@@ -78,8 +81,8 @@ def space_payload(chain: Chain, resolution: int = 24, samples: int = 3000, seed:
     dict
         ``n``, ``topology`` (:meth:`linkage.topology.Topology.summary`), ``hasAtlas``, ``chartIds``;
         ``sphere`` (``n = 4`` with an atlas: the mesh, else ``None``); ``circle`` (``n = 3`` with an atlas:
-        points of the unit circle and their rod angles, else ``None``); ``torus``: ``{angles, name}``, rod angles
-        of configurations in the cube, and the name of the projection; ``start``: one configuration of the space
+        points of the unit circle and their rod angles, else ``None``); ``torus``: ``{angles, hinges, name}``,
+        rod angles of configurations in the cube, the configurations, and the name of the projection; ``start``: one configuration of the space
         (chart 0's parameters all 0.4 where there is an atlas, else the first sample) to pose the chain in.
     """
     topology = chain.topology()
@@ -89,7 +92,8 @@ def space_payload(chain: Chain, resolution: int = 24, samples: int = 3000, seed:
                            "sphere": None, "circle": None}
     if chain.n == 4 and chain.has_atlas:
         out["sphere"] = _sphere_mesh(chain, resolution)
-        angles = np.array(out["sphere"]["angles"])
+        angles, pairs = np.array(out["sphere"]["angles"]), np.array(out["sphere"]["hinges"])
+        hinges = pairs[..., 0] + 1j * pairs[..., 1]
         name = "the configuration sphere in the cube of rod angles (theta_1, theta_2, theta_3)"
     elif chain.n == 3 and chain.has_atlas:
         points, hinges = _circle(chain, resolution)
@@ -103,7 +107,7 @@ def space_payload(chain: Chain, resolution: int = 24, samples: int = 3000, seed:
         angles = chain.angles(hinges)
         name = (f"projection of {size} configurations sampled uniformly in the diagonal coordinates onto the rod "
                 f"angles ({'theta_1, theta_2' if chain.n == 3 else 'theta_1, theta_2, theta_3'})")
-    out["torus"] = {"angles": np.asarray(angles)[:, :3].tolist(), "name": name}
+    out["torus"] = {"angles": np.asarray(angles)[:, :3].tolist(), "hinges": as_pairs(np.asarray(hinges)), "name": name}
     start = chain.atlas().charts[0].hinges(np.full(chain.n - 2, 0.4)) if chain.has_atlas else hinges[0]
     out["start"] = as_pairs(start)
     return out
@@ -115,3 +119,80 @@ def pose_from_sphere(chain: Chain, point: NDArray) -> NDArray:
     if not chain.has_atlas:
         raise ValueError(f"the sphere picture needs an atlas, and this chain has none: {chain.topology().summary()}")
     return chain.atlas().charts[0].hinges(sphere_parameters(point))
+
+
+#: Gauss-Newton iterations of :func:`pose_from_angles`, and the relative decrease of the distance below which it
+#: stops.
+POSE_ITERATIONS, POSE_TOL = 100, 1e-12
+
+
+def _close_rods(lengths: NDArray, L: float, theta: NDArray) -> NDArray:
+    """Rod angles moved by the smallest steps (Newton, minimum norm) until ``sum_k l_k e^{i theta_k} = L``."""
+    for _ in range(8):
+        gap = np.sum(lengths * np.exp(1j * theta)) - L
+        if abs(gap) <= 1e-15 * L:
+            break
+        G = np.stack([-lengths * np.sin(theta), lengths * np.cos(theta)])  # d(Re, Im of the sum)/d theta
+        theta = theta - np.linalg.lstsq(G, [gap.real, gap.imag], rcond=None)[0]
+    return theta
+
+
+def pose_from_angles(chain: Chain, hinges: NDArray, angles: NDArray, direction: NDArray | None = None) -> NDArray:
+    """The configuration near ``hinges`` whose first ``k`` rod angles come nearest to the line through ``angles``
+    along ``direction`` in the torus ``T^k`` (to the point ``angles`` itself without a direction).
+
+    In rod angles ``theta`` the configuration space is ``g(theta) = sum_j l_j e^{i theta_j} - L = 0``; with
+    ``Q = I - d d^T / |d|^2`` (``Q = I`` without a direction) and ``w`` the wrap to ``(-pi, pi]``, the distance
+    ``|r(theta)|``, ``r = Q w(theta_{1..k} - a)``, is minimised over ``g = 0`` by Levenberg-Marquardt steps in
+    the tangent space ``ker dg`` from the rod angles of ``hinges``, each step followed by the minimum-norm Newton
+    correction back onto ``g = 0`` and taken only where it shortens the distance.  A line of sight through the
+    cube of ``(theta_1, theta_2, theta_3)`` meets a surface (``n = 4``) in isolated points, and the pose found
+    is the one of them reached from ``hinges``; for ``n > 4`` the steps leave the directions that do not move
+    the picture alone.
+
+    Raises
+    ------
+    ValueError
+        If ``angles`` does not have between 1 and ``n`` entries or ``direction`` not as many, or if the result
+        does not close to ``1e-12`` (it always does from a configuration).
+    """
+    a = np.asarray(angles, dtype=float)
+    k, n = a.size, chain.n
+    if a.ndim != 1 or not 1 <= k <= n:
+        raise ValueError(f"angles must be a list of 1 to n = {n} rod angles, got shape {a.shape}")
+    Q = np.eye(k)
+    if direction is not None:
+        d = np.asarray(direction, dtype=float)
+        if d.shape != (k,) or not np.any(d):
+            raise ValueError(f"direction must be a nonzero vector of {k} entries (as many as angles), got {d}")
+        Q -= np.outer(d, d) / (d @ d)
+    lengths, L = chain.lengths, chain.L
+
+    def residual(theta: NDArray) -> NDArray:
+        return Q @ np.angle(np.exp(1j * (theta[:k] - a)))  # wrapped: the nearest copy of the torus point
+
+    theta = _close_rods(lengths, L, chain.angles(chain.as_hinges(hinges)))
+    r, mu = residual(theta), 1e-6
+    for _ in range(POSE_ITERATIONS):
+        G = np.stack([-lengths * np.sin(theta), lengths * np.cos(theta)])
+        _, sv, vt = np.linalg.svd(G)
+        N = vt[int(np.sum(sv > 1e-12 * sv[0])):].T  # the tangent space ker dg, shape (n, n - rank)
+        B = Q @ N[:k]  # dr/dz for theta = theta + N z
+        while True:
+            z = -np.linalg.solve(B.T @ B + mu * np.eye(N.shape[1]), B.T @ r)
+            trial = _close_rods(lengths, L, theta + N @ z)
+            r_trial = residual(trial)
+            if np.linalg.norm(r_trial) < np.linalg.norm(r) or mu > 1e6:
+                break
+            mu *= 10.0
+        if np.linalg.norm(r_trial) >= np.linalg.norm(r):
+            break  # no step shortens the distance: a local minimum
+        shrink = np.linalg.norm(r) - np.linalg.norm(r_trial)
+        theta, r, mu = trial, r_trial, max(mu / 10.0, 1e-12)
+        if shrink <= POSE_TOL * max(np.linalg.norm(r), 1.0):
+            break
+    pose = chain.hinges_from_angles(theta, tol=1e-12 * L)
+    residual_max = float(np.max(chain.closure_residual(pose)))
+    if residual_max > 1e-12:
+        raise ValueError(f"the pose does not close: residual {residual_max:.3g} > 1e-12")
+    return pose
