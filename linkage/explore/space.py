@@ -173,6 +173,7 @@ def pose_from_angles(chain: Chain, hinges: NDArray, angles: NDArray, direction: 
 
     theta = _close_rods(lengths, L, chain.angles(chain.as_hinges(hinges)))
     r, mu = residual(theta), 1e-6
+    distance = float(np.linalg.norm(r))
     for _ in range(POSE_ITERATIONS):
         G = np.stack([-lengths * np.sin(theta), lengths * np.cos(theta)])
         _, sv, vt = np.linalg.svd(G)
@@ -182,14 +183,15 @@ def pose_from_angles(chain: Chain, hinges: NDArray, angles: NDArray, direction: 
             z = -np.linalg.solve(B.T @ B + mu * np.eye(N.shape[1]), B.T @ r)
             trial = _close_rods(lengths, L, theta + N @ z)
             r_trial = residual(trial)
-            if np.linalg.norm(r_trial) < np.linalg.norm(r) or mu > 1e6:
+            shorter = float(np.linalg.norm(r_trial))
+            if shorter < distance or mu > 1e6:
                 break
             mu *= 10.0
-        if np.linalg.norm(r_trial) >= np.linalg.norm(r):
+        if shorter >= distance:
             break  # no step shortens the distance: a local minimum
-        shrink = np.linalg.norm(r) - np.linalg.norm(r_trial)
         theta, r, mu = trial, r_trial, max(mu / 10.0, 1e-12)
-        if shrink <= POSE_TOL * max(np.linalg.norm(r), 1.0):
+        distance, shrink = shorter, distance - shorter
+        if shrink <= POSE_TOL * max(distance, 1.0):
             break
     pose = chain.hinges_from_angles(theta, tol=1e-12 * L)
     residual_max = float(np.max(chain.closure_residual(pose)))
