@@ -129,6 +129,70 @@ def test_drag_and_flick_plays_free_motion(page: Any, figures: Path) -> None:
           f"{metrics['fps']:.1f} frames per second while playing")
 
 
+def front_pair(page: Any) -> tuple[np.ndarray, np.ndarray, dict, dict]:
+    """Two configurations of chart 0 (parameters 0.3 apart), with their points of the cube and the point halfway
+    in front of every other configuration drawn within 10 pixels (the surface overlaps itself in the picture):
+    their rod angles and where the page draws them."""
+    chart0 = CHAIN.atlas().charts[0]
+    grid = np.stack(np.meshgrid(np.linspace(-1.4, 1.4, 57), np.linspace(-np.pi, np.pi, 121), indexing="ij"), -1)
+    angles = CHAIN.angles(chart0.hinges(grid.reshape(-1, 2)))[:, :3]
+    drawn = page.evaluate("(a) => a.map((x) => window.linkageExplorer.cubeScreen(x))", angles.tolist())
+    xyd = np.array([[p["x"], p["y"], p["depth"]] for p in drawn])
+
+    def in_front(a: np.ndarray) -> bool:
+        p = page.evaluate(f"window.linkageExplorer.cubeScreen({a.tolist()})")
+        close = np.hypot(xyd[:, 0] - p["x"], xyd[:, 1] - p["y"]) < 10
+        return bool(np.all(xyd[close, 2] > p["depth"] - 0.1))
+
+    for a in grid[10:-10:4, ::8].reshape(-1, 2):
+        ends = [CHAIN.angles(chart0.hinges(a + t * np.array([0.3, -0.3])))[:3] for t in (0.0, 0.5, 1.0)]
+        if all(in_front(e) for e in ends):
+            s0, s1 = (page.evaluate(f"window.linkageExplorer.cubeScreen({e.tolist()})") for e in (ends[0], ends[2]))
+            if np.hypot(s1["x"] - s0["x"], s1["y"] - s0["y"]) > 20:
+                return ends[0], ends[2], s0, s1
+    raise AssertionError("no two configurations in front of the picture")
+
+
+def test_a_drag_in_the_cube_of_rod_angles_poses_the_chain_and_a_flick_launches(page: Any, figures: Path) -> None:
+    """In the torus view (the sphere's configurations in the cube of rod angles): a slow drag from one
+    configuration's point to another's poses the chain there, on the pointer's line of sight; a flick back
+    launches free_motion's motion from the pose and velocity the page sends."""
+    explorer = "window.linkageExplorer"
+    page.select_option("#c-view", "torus")
+    page.evaluate(f"{explorer}.setSpeed(4)")
+    start, target, s0, s1 = front_pair(page)
+    page.mouse.move(s0["x"], s0["y"])
+    page.mouse.down()
+    for k in range(1, 11):
+        page.mouse.move(s0["x"] + k / 10 * (s1["x"] - s0["x"]), s0["y"] + k / 10 * (s1["y"] - s0["y"]))
+        page.wait_for_timeout(30)
+    wait_until(page, f"!{explorer}.dragPending()")
+    posed = complex_of(state(page)["hinges"])
+    angles = CHAIN.angles(posed)[:3]
+    seen = page.evaluate(f"{explorer}.cubeScreen({angles.tolist()})")
+    print(f"\ncube drag: pose {np.max(np.abs(np.angle(np.exp(1j * (angles - target))))):.2e} rad from the "
+          f"target's rod angles, drawn {np.hypot(seen['x'] - s1['x'], seen['y'] - s1['y']):.2e} px from the pointer")
+    assert np.max(CHAIN.closure_residual(posed)) <= 1e-12
+    assert np.hypot(seen["x"] - s1["x"], seen["y"] - s1["y"]) < 0.5  # on the pointer's line of sight
+    assert np.max(np.abs(np.angle(np.exp(1j * (angles - target))))) < 0.05  # a pixel is ~0.02 rad of the cube
+    for k in range(1, 13):  # back to the start in 12 moves 15 ms apart: a flick (the page reads its last 80 ms)
+        page.mouse.move(s1["x"] + k / 12 * (s0["x"] - s1["x"]), s1["y"] + k / 12 * (s0["y"] - s1["y"]))
+        page.wait_for_timeout(15)
+    page.mouse.up()
+    wait_until(page, f"{explorer}.state().running || {explorer}.error() !== null")
+    assert page.evaluate(f"{explorer}.error()") is None
+    launched = page.evaluate(f"{explorer}.lastLaunch()")
+    h0, v0 = complex_of(launched["hinges"]), complex_of(launched["velocity"])
+    assert np.max(CHAIN.closure_residual(h0)) <= 1e-12 and CHAIN.kinetic_energy(v0) > 0
+    reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts", t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
+    seen_states = play_and_compare(page, reference, until=WINDOW)
+    assert len({s["t"] for s in seen_states}) >= 5 and max(s["t"] for s in seen_states) > 0.8 * WINDOW
+    page.evaluate(f"{explorer}.pause()")
+    page.screenshot(path=str(figures / "explorer_cube.png"))
+    page.evaluate(f"{explorer}.resume()")
+    page.select_option("#c-view", "sphere")
+
+
 def pole_start() -> tuple[np.ndarray, np.ndarray]:
     """A unit-speed start heading over the pole phi_4 = pi/2 of chart 0 (the same as in test_explore_api)."""
     chart0 = CHAIN.atlas().charts[0]

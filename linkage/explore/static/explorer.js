@@ -1,6 +1,6 @@
 // The explorer's page: draws what the server computes (linkage.explore.app), integrates nothing itself.
 // Panels: the chain in the plane (drag a hinge, flick to launch), the configuration space (chart-0 sphere or the
-// torus of rod angles; drag a point of the sphere, flick to launch), readouts and controls.
+// torus of rod angles; drag a point of either, flick to launch), readouts and controls.
 // A motion arrives over the WebSocket /api/stream in windows of samples; the page plays them at the chosen
 // speed, showing at each frame the last sample whose time has come (no interpolation: what is shown is what the
 // library computed). Test hook: window.linkageExplorer (see docs/explorer.md).
@@ -173,7 +173,7 @@ const sphereGroup = new THREE.Group(), torusGroup = new THREE.Group(), fanGroup 
 spaceView.scene.add(sphereGroup, torusGroup, fanGroup);
 spaceView.scene.add(new THREE.AmbientLight(0xffffff, 1.2));
 const sun = new THREE.DirectionalLight(0xffffff, 1.5); sun.position.set(3, 4, 5); spaceView.scene.add(sun);
-let sphereMesh = null, spherePath = null, torusPath = null, marker = null, switchMarkers = null;
+let sphereMesh = null, spherePath = null, torusPath = null, torusCloud = null, marker = null, switchMarkers = null;
 
 function curvatureColours(values) {
   const sorted = values.map(Math.abs).sort((a, b) => a - b);
@@ -244,7 +244,8 @@ function buildSpace() {
   torusGroup.add(box);
   const cloud = new THREE.BufferGeometry();
   cloud.setAttribute('position', new THREE.Float32BufferAttribute(sp.torus.angles.flatMap(torusPoint), 3));
-  torusGroup.add(new THREE.Points(cloud, new THREE.PointsMaterial({ color: 0x9aa3ad, size: 0.02 })));
+  torusCloud = new THREE.Points(cloud, new THREE.PointsMaterial({ color: 0x9aa3ad, size: 0.02 }));
+  torusGroup.add(torusCloud);
   spherePath = pathLine(MAX_SAMPLES + 2); torusPath = pathLine(MAX_SAMPLES + 2);
   torusPath = new THREE.Points(torusPath.geometry, new THREE.PointsMaterial({ vertexColors: true, size: 0.03 }));
   sphereGroup.add(spherePath); torusGroup.add(torusPath);
@@ -259,6 +260,7 @@ function buildSpace() {
 function showView() {
   const torus = $('c-view').value === 'torus' || !(S.space.sphere || S.space.circle || (S.space.hasAtlas));
   sphereGroup.visible = !torus; torusGroup.visible = torus; fanGroup.visible = !torus;
+  if (S.space.n > 3) spaceView.camera.position.setLength(torus ? 5.5 : 3.8);  // the whole cube in sight, or the sphere
   $('space-name').textContent = torus ? S.space.torus.name : (S.space.sphere
     ? 'the sphere S^2 in chart 0\'s picture (latitude phi_4, longitude t)'
     : S.space.circle ? 'the circle S^1 in chart 0\'s picture'
@@ -322,6 +324,12 @@ function screenOfHinge(k) {
            y: rect.top + (cam.top - h[1]) / (cam.top - cam.bottom) * rect.height };
 }
 
+function screenOfAngles(angles) {  // where rod angles are drawn in the torus view: page pixels, distance from the eye
+  const rect = spaceCanvas.getBoundingClientRect(), q = new THREE.Vector3(...torusPoint(angles));
+  const depth = q.distanceTo(spaceView.camera.position), p = q.project(spaceView.camera);
+  return { x: rect.left + (p.x + 1) / 2 * rect.width, y: rect.top + (1 - p.y) / 2 * rect.height, depth };
+}
+
 function currentHinges() {
   return S.index >= 0 && S.samples.length ? S.samples[S.index].hinges : S.pose;
 }
@@ -343,6 +351,7 @@ function makeDrag(project) {
   }
   return {
     start() { stop(); S.index = -1; S.samples = []; clearPaths(); history = [{ time: performance.now(), hinges: S.pose }]; },
+    pending() { return busy !== null; },
     move(goal) { target = { goal, time: performance.now() }; if (!busy) busy = pump(); },
     async release() {
       S.metrics.tFlick = performance.now(); S.metrics.flickToFirstFrameMs = null;
@@ -381,31 +390,68 @@ chainCanvas.addEventListener('pointerup', () => {
   hingeDrag = null; chainDrag.release();
 });
 
+// the configuration space takes drags too: on the sphere (or the circle) the pointer's point of chart 0's
+// picture is posed (/api/pose with `sphere`); in the torus of rod angles a drag starts at a configuration of the
+// cloud under the pointer, and the chain is posed at the configuration, reached from the last pose, whose rod
+// angles lie on the pointer's line of sight through the cube (n = 3: nearest the pointer's point of the plane)
 const spaceCanvas = spaceView.renderer.domElement, raycaster = new THREE.Raycaster();
-let sphereDragging = false;
-function sphereHit(event) {
+raycaster.params.Points.threshold = 0.04;
+let spaceDragging = false;
+function pointerRay(event) {
   const rect = spaceCanvas.getBoundingClientRect();
   const ndc = new THREE.Vector2((event.clientX - rect.left) / rect.width * 2 - 1,
                                 -(event.clientY - rect.top) / rect.height * 2 + 1);
   raycaster.setFromCamera(ndc, spaceView.camera);
-  const hit = sphereMesh && sphereGroup.visible ? raycaster.intersectObject(sphereMesh)[0] : null;
-  return hit ? unpicture(hit.point.toArray()) : null;
+  return raycaster.ray;
 }
-const sphereDrag = makeDrag(async (point) => (await api('/api/pose', { ...chainBody(), sphere: point })).hinges);
+function planeHit(ray) {  // where the ray meets the plane z = 0 of the flat pictures (n = 3)
+  return Math.abs(ray.direction.z) < 1e-9 ? null : ray.at(-ray.origin.z / ray.direction.z, new THREE.Vector3());
+}
+function sphereGoal(event) {
+  const ray = pointerRay(event);
+  if (sphereMesh) {
+    const hit = raycaster.intersectObject(sphereMesh)[0];
+    return hit ? { sphere: unpicture(hit.point.toArray()) } : null;
+  }
+  const p = planeHit(ray);  // the circle S^1 in the plane
+  return p && Math.abs(Math.hypot(p.x, p.y) - 1) < 0.15 ? { sphere: unpicture(p.toArray()).slice(0, 2) } : null;
+}
+function torusGoal(event) {
+  const ray = pointerRay(event), k = S.space.n === 3 ? 2 : 3;
+  if (k === 2) { const p = planeHit(ray); return p ? { angles: [p.x * Math.PI, p.y * Math.PI] } : null; }
+  // the line of sight, from its point nearest the pose shown (the angles' scale: the cube [-1, 1]^3 is [-pi, pi]^3)
+  const near = ray.closestPointToPoint(new THREE.Vector3(...torusPoint(rodAngles(S.pose))), new THREE.Vector3());
+  return { angles: near.toArray().map((x) => x * Math.PI), direction: ray.direction.toArray() };
+}
+function rodAngles(hinges) {
+  const pts = [[0, 0], ...hinges, [S.chain.L, 0]];
+  return pts.slice(1).map(([x, y], k) => Math.atan2(y - pts[k][1], x - pts[k][0]));
+}
+const spaceDrag = makeDrag(async (goal) => (await api('/api/pose',
+  goal.sphere ? { ...chainBody(), sphere: goal.sphere } : { ...chainBody(), ...goal, hinges: S.pose })).hinges);
 spaceCanvas.addEventListener('pointerdown', (event) => {
-  const point = sphereHit(event);
-  if (!point) return;
-  orbit.enabled = false; sphereDragging = true;
-  S.pose = currentHinges(); sphereDrag.start(); sphereDrag.move(point);
+  let seed = currentHinges(), goal;
+  if (torusGroup.visible) {
+    pointerRay(event);
+    const hit = raycaster.intersectObject(torusCloud)[0];
+    if (!hit) return;
+    seed = S.space.torus.hinges[hit.index];
+    S.pose = seed; goal = torusGoal(event);
+  } else {
+    goal = sphereGoal(event);
+  }
+  if (!goal) return;
+  orbit.enabled = false; spaceDragging = true;
+  S.pose = seed; spaceDrag.start(); spaceDrag.move(goal);
 }, { capture: true });
 spaceCanvas.addEventListener('pointermove', (event) => {
-  if (!sphereDragging) return;
-  const point = sphereHit(event);
-  if (point) sphereDrag.move(point);
+  if (!spaceDragging) return;
+  const goal = torusGroup.visible ? torusGoal(event) : sphereGoal(event);
+  if (goal) spaceDrag.move(goal);
 });
 spaceCanvas.addEventListener('pointerup', () => {
-  if (!sphereDragging) return;
-  sphereDragging = false; orbit.enabled = true; sphereDrag.release();
+  if (!spaceDragging) return;
+  spaceDragging = false; orbit.enabled = true; spaceDrag.release();
 });
 
 // ---------------------------------------------------------------------------------------------- controls
@@ -510,8 +556,9 @@ function frame(now) {
       S.metrics.flickToFirstFrameMs = now - S.metrics.tFlick;
     }
     readouts(s);
-  } else if (marker) {
-    marker.visible = false;
+  } else if (marker) {  // at rest or dragged: the pose, where the torus of rod angles shows it
+    marker.visible = torusGroup.visible && !!S.pose;
+    if (marker.visible) marker.position.set(...torusPoint(rodAngles(S.pose)));
   }
   orbit.update();
   chainView.renderer.render(chainView.scene, chainView.camera);
@@ -550,6 +597,8 @@ window.linkageExplorer = {
   resume() { S.paused = false; $('c-pause').textContent = 'pause'; return this.state(); },
   setSpeed(v) { S.speed = v; $('c-speed').value = v; $('c-speed-out').textContent = v; },
   hingeScreen: screenOfHinge,
+  cubeScreen: screenOfAngles,
+  dragPending: () => chainDrag.pending() || spaceDrag.pending(),
   lastLaunch: () => S.lastLaunch,
   space: () => ({ n: S.space.n, L: S.space.L, topology: S.space.topology, builds: S.spaceBuilds,
                   vertices: S.space.sphere ? S.space.sphere.vertices.length : 0,
