@@ -155,8 +155,9 @@ def front_pair(page: Any) -> tuple[np.ndarray, np.ndarray, dict, dict]:
 
 def test_a_drag_in_the_cube_of_rod_angles_poses_the_chain_and_a_flick_launches(page: Any, figures: Path) -> None:
     """In the torus view (the sphere's configurations in the cube of rod angles): a slow drag from one
-    configuration's point to another's poses the chain there, on the pointer's line of sight; a flick back
-    launches free_motion's motion from the pose and velocity the page sends."""
+    configuration's point to another's poses the chain there, on the pointer's line of sight, and a release
+    after a rest leaves it there; pressed again there, a flick back launches free_motion's motion from the pose
+    and velocity the page sends."""
     explorer = "window.linkageExplorer"
     page.select_option("#c-view", "torus")
     page.evaluate(f"{explorer}.setSpeed(4)")
@@ -175,6 +176,13 @@ def test_a_drag_in_the_cube_of_rod_angles_poses_the_chain_and_a_flick_launches(p
     assert np.max(CHAIN.closure_residual(posed)) <= 1e-12
     assert np.hypot(seen["x"] - s1["x"], seen["y"] - s1["y"]) < 0.5  # on the pointer's line of sight
     assert np.max(np.abs(np.angle(np.exp(1j * (angles - target))))) < 0.05  # a pixel is ~0.02 rad of the cube
+    before = page.evaluate(f"{explorer}.lastLaunch()")
+    page.wait_for_timeout(400)  # held still, then released: posed, not launched
+    page.mouse.up()
+    page.wait_for_timeout(500)
+    assert page.evaluate(f"{explorer}.lastLaunch()") == before and not state(page)["running"]
+    assert np.array_equal(complex_of(state(page)["hinges"]), posed)
+    page.mouse.down()  # pressed again where it rests
     for k in range(1, 13):  # back to the start in 12 moves 15 ms apart: a flick (the page reads its last 80 ms)
         page.mouse.move(s1["x"] + k / 12 * (s0["x"] - s1["x"]), s1["y"] + k / 12 * (s0["y"] - s1["y"]))
         page.wait_for_timeout(15)

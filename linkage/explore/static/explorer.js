@@ -335,7 +335,8 @@ function currentHinges() {
 }
 
 // a drag records (time of the pointer event, hinges there); the release launches with the velocity of the last
-// ~80 ms of it
+// ~80 ms of it, unless the pointer rested for HOLD_MS before it
+const HOLD_MS = 250;
 function makeDrag(project) {
   let history = [], busy = null, target = null;
   async function pump() {
@@ -357,6 +358,7 @@ function makeDrag(project) {
       S.metrics.tFlick = performance.now(); S.metrics.flickToFirstFrameMs = null;
       if (busy) await busy;
       const last = history[history.length - 1];
+      if (S.metrics.tFlick - last.time > HOLD_MS) return;  // held still, then released: the chain stays posed
       const old = [...history].reverse().find((e) => last.time - e.time >= 80) ?? history[0];
       const dt = (last.time - old.time) / 1000;
       if (dt <= 0) return;
