@@ -2,7 +2,8 @@
 
 The page is loaded from a real server; a hinge is dragged and flicked with the mouse, and what the page shows
 (``window.linkageExplorer.state()``) must be free_motion's motion from the start the page launched, sample for
-sample over T = 10.  A launch over chart 0's pole must show a switch; a new L must rebuild the space; a bad launch
+sample over T = 10; so must a flick in the cube of rod angles, after a drag there that poses the chain under
+the pointer (and, for three rods, on the torus T^2 and on chart 0's circle).  A launch over chart 0's pole must show a switch; a new L must rebuild the space; a bad launch
 must show its error on the page.  The screenshots in docs/figures are taken here (``LINKAGE_SCREENSHOTS=1``).
 
 Without Chromium (``/usr/bin/chromium``, Debian's package) these tests skip and say so, except in CI (the
@@ -274,3 +275,38 @@ def test_a_replay_file_plays_without_a_server(page: Any, tmp_path: Path, figures
     context.close()
     assert errors == []
     assert all(url.startswith(("file:", "blob:")) for url in requests), requests
+
+
+def test_three_rods_take_drags_on_the_torus_and_on_the_circle(page: Any) -> None:
+    """n = 3: a drag along the curve in the torus T^2 of (theta_1, theta_2) poses the chain at the configuration
+    under the pointer, and so does a drag along chart 0's circle; both released after a rest."""
+    explorer, chain = "window.linkageExplorer", Chain(3, 2.0)
+    page.evaluate(f"{explorer}.setLength(2.0)")
+    page.fill("#c-lengths", "3")
+    page.click("#c-apply")
+    wait_until(page, f"{explorer}.space().n === 3")
+    chart0 = chain.atlas().charts[0]
+    for view in ("torus", "sphere"):
+        page.select_option("#c-view", view)
+        a0 = chart0.get_parameters(chain.to_point(complex_of(state(page)["hinges"])))  # the pose, in chart 0
+        target = chart0.hinges(a0 + 0.4)
+        if view == "torus":
+            ends = [chain.angles(h)[:2] for h in (chart0.hinges(a0), target)]
+        else:  # the circle drawn as (cos, sin) of chart 0's angle: cubeScreen reads the plane in units of pi
+            ends = [np.pi * np.array(chart0.sphere_point(a)[::-1]) for a in (a0, a0 + 0.4)]
+        s0, s1 = (page.evaluate(f"{explorer}.cubeScreen({e.tolist()})") for e in ends)
+        page.mouse.move(s0["x"], s0["y"])
+        page.mouse.down()
+        for k in range(1, 11):
+            page.mouse.move(s0["x"] + k / 10 * (s1["x"] - s0["x"]), s0["y"] + k / 10 * (s1["y"] - s0["y"]))
+            page.wait_for_timeout(30)
+        wait_until(page, f"!{explorer}.dragPending()")
+        posed = complex_of(state(page)["hinges"])
+        assert np.max(chain.closure_residual(posed)) <= 1e-12
+        assert np.max(np.abs(posed - target)) < 1e-3, view  # a pixel is ~0.01 of the picture
+        page.wait_for_timeout(400)
+        page.mouse.up()
+    page.fill("#c-lengths", "4")
+    page.click("#c-apply")
+    wait_until(page, f"{explorer}.space().n === 4")
+    page.evaluate(f"{explorer}.setLength(3.0)")
