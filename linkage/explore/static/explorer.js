@@ -415,7 +415,7 @@ function sphereGoal(event) {
     const hit = raycaster.intersectObject(sphereMesh)[0];
     return hit ? { sphere: unpicture(hit.point.toArray()) } : null;
   }
-  const p = planeHit(ray);  // the circle S^1 in the plane
+  const p = S.space.circle ? planeHit(ray) : null;  // the circle S^1 in the plane
   return p && Math.abs(Math.hypot(p.x, p.y) - 1) < 0.15 ? { sphere: unpicture(p.toArray()).slice(0, 2) } : null;
 }
 function torusGoal(event) {
