@@ -342,7 +342,9 @@ class ChartNumerics:
         # numerical trap: 1/2 c^T g c sums entries of g that carry the heaviest mass's rounding; with hinge masses
         # spread over 1e7 the recorded energy scattered by 1e-11 from step to step while the motion held 4e-13.
         # 1/2 v^T K v of the embedded velocity sums positive terms for a diagonal K
-        return (self.M @ z).T + self.m, v, np.sum(v * (v @ self.K), axis=1) / 2  # (0.5 * x fails for real128 arrays)
+        with np.errstate(over="ignore"):  # a huge velocity's energy is inf, which the callers refuse by name
+            E = np.sum(v * (v @ self.K), axis=1) / 2  # (0.5 * x fails for real128 arrays)
+        return (self.M @ z).T + self.m, v, E
 
     def point_velocity_states(self, states: NDArray) -> tuple[NDArray, NDArray]:
         """Points and embedded velocities ``(m, N)`` of chart states ``(a, c)`` stacked as rows ``(m, >= 2k)``."""
