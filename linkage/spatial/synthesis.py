@@ -117,6 +117,21 @@ def bennett_linkage(h1: DualQuaternion, h2: DualQuaternion, offset: Any) -> Revo
     return linkage_from_factorizations([h1, c * one + h2], [(c * c + 1, -2 * c), (1, 0)])
 
 
+def _check_four_revolute(**chains: RevoluteChain) -> None:
+    """``ValueError`` naming the first argument that is not a 4R :class:`RevoluteChain`."""
+    for name, chain in chains.items():
+        if not isinstance(chain, RevoluteChain) or chain.n != 4:
+            raise ValueError(f"{name} must be a 4R RevoluteChain (a Bennett linkage); got {chain!r}")
+
+
+def _bennett_expressions(name: str, curve: ConfigurationCurve) -> list:
+    """The joint values along a Bennett linkage's configuration ``curve`` (argument ``name``), cancelled, as
+    functions of joint 4; ``ValueError`` for a curve of genus > 0 (a planar or spherical 4R)."""
+    if not curve.is_rational:
+        raise ValueError(f"{name} has a curve of genus > 0: it is a planar or spherical 4R, not a Bennett linkage")
+    return [sympy.cancel(e) for e in curve.expressions()]
+
+
 def goldberg(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> RevoluteChain:
     """Goldberg's 5R linkage ``(h_1, h_2, h_3, h_4, h_5)`` from two Bennett linkages.
 
@@ -141,9 +156,7 @@ def goldberg(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> RevoluteChai
         If either chain is not a 4R chain with a rational configuration curve (a Bennett
         linkage), or the shared axes are not the same lines.
     """
-    for name, chain in (("bennett_a", bennett_a), ("bennett_b", bennett_b)):
-        if not isinstance(chain, RevoluteChain) or chain.n != 4:
-            raise ValueError(f"{name} must be a 4R RevoluteChain (a Bennett linkage); got {chain!r}")
+    _check_four_revolute(bennett_a=bennett_a, bennett_b=bennett_b)
     h1, h2, h3, h6 = bennett_a.axes
     b_axes = list(bennett_b.axes)
     for k, (mine, shared, label) in enumerate(((b_axes[0], h3, "h3"), (b_axes[3], h6, "h6"))):
@@ -155,12 +168,8 @@ def goldberg(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> RevoluteChai
                 f"is not +-{shared}"
             )
     b_chain = bennett_b if b_axes == list(bennett_b.axes) else RevoluteChain(b_axes)
-    curves = []
-    for name, chain in (("bennett_a", bennett_a), ("bennett_b", b_chain)):
-        curve = chain.configuration_curve()
-        if not curve.is_rational:
-            raise ValueError(f"{name} has a curve of genus > 0: it is a planar or spherical 4R, not a Bennett linkage")
-        curves.append([sympy.cancel(e) for e in curve.expressions()])  # parameter t = joint 4
+    curves = [_bennett_expressions(name, chain.configuration_curve())
+              for name, chain in (("bennett_a", bennett_a), ("bennett_b", b_chain))]
     a1, a2, a3, _ = curves[0]
     b3, b4, b5, _ = (sympy.cancel(e.subs(T, -T)) for e in curves[1])  # b_6 = -a_6 = -t
     tau = sympy.cancel((a3 * b3 - 1) / (a3 + b3))
@@ -194,9 +203,7 @@ def double_bennett(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> Revolu
         ``bennett_b.axes[0]`` are not the same line, or the 6R chain has two equal
         consecutive axes (``h_3 = +-h_4`` or ``h_6 = +-h_1``).
     """
-    for name, chain in (("bennett_a", bennett_a), ("bennett_b", bennett_b)):
-        if not isinstance(chain, RevoluteChain) or chain.n != 4:
-            raise ValueError(f"{name} must be a 4R RevoluteChain (a Bennett linkage); got {chain!r}")
+    _check_four_revolute(bennett_a=bennett_a, bennett_b=bennett_b)
     h1, h2, h3, h = bennett_a.axes
     if bennett_b.axes[0] != h and bennett_b.axes[0] != -h:
         raise ValueError(
@@ -212,9 +219,7 @@ def double_bennett(bennett_a: RevoluteChain, bennett_b: RevoluteChain) -> Revolu
             curve = RevoluteChain(axes).configuration_curve()
         except ValueError as err:  # rigid or reducible: the same error type, naming the argument
             raise type(err)(f"{name} is not a Bennett linkage: {err}") from err
-        if not curve.is_rational:
-            raise ValueError(f"{name} has a curve of genus > 0: it is a planar or spherical 4R, not a Bennett linkage")
-        curves.append([sympy.cancel(e) for e in curve.expressions()])
+        curves.append(_bennett_expressions(name, curve))
     a1, a2, a3, _ = curves[0]
     b4, b5, b6 = (sympy.cancel(e.subs(T, -T)) for e in curves[1][:3])  # b_h = -a_h = -t
     return RevoluteChain([h1, h2, h3, h4, h5, h6], curve=ConfigurationCurve.rational([a1, a2, a3, b4, b5, b6]))
