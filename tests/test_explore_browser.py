@@ -130,6 +130,17 @@ def test_drag_and_flick_plays_free_motion(page: Any, figures: Path) -> None:
           f"{metrics['fps']:.1f} frames per second while playing")
 
 
+def press_and_drag_slowly(page: Any, s0: dict, s1: dict) -> None:
+    """Press at screen point ``s0`` and move to ``s1`` in 10 steps 30 ms apart, the button held, until the page has
+    answered every move (no drag request pending)."""
+    page.mouse.move(s0["x"], s0["y"])
+    page.mouse.down()
+    for k in range(1, 11):
+        page.mouse.move(s0["x"] + k / 10 * (s1["x"] - s0["x"]), s0["y"] + k / 10 * (s1["y"] - s0["y"]))
+        page.wait_for_timeout(30)
+    wait_until(page, "!window.linkageExplorer.dragPending()")
+
+
 def front_pair(page: Any) -> tuple[np.ndarray, np.ndarray, dict, dict]:
     """Two configurations of chart 0 (parameters 0.3 apart), with their points of the cube and the point halfway
     in front of every other configuration drawn within 10 pixels (the surface overlaps itself in the picture):
@@ -163,12 +174,7 @@ def test_a_drag_in_the_cube_of_rod_angles_poses_the_chain_and_a_flick_launches(p
     page.select_option("#c-view", "torus")
     page.evaluate(f"{explorer}.setSpeed(4)")
     start, target, s0, s1 = front_pair(page)
-    page.mouse.move(s0["x"], s0["y"])
-    page.mouse.down()
-    for k in range(1, 11):
-        page.mouse.move(s0["x"] + k / 10 * (s1["x"] - s0["x"]), s0["y"] + k / 10 * (s1["y"] - s0["y"]))
-        page.wait_for_timeout(30)
-    wait_until(page, f"!{explorer}.dragPending()")
+    press_and_drag_slowly(page, s0, s1)
     posed = complex_of(state(page)["hinges"])
     angles = CHAIN.angles(posed)[:3]
     seen = page.evaluate(f"{explorer}.cubeScreen({angles.tolist()})")
@@ -295,12 +301,7 @@ def test_three_rods_take_drags_on_the_torus_and_on_the_circle(page: Any) -> None
         else:  # the circle drawn as (cos, sin) of chart 0's angle: cubeScreen reads the plane in units of pi
             ends = [np.pi * np.array(chart0.sphere_point(a)[::-1]) for a in (a0, a0 + 0.4)]
         s0, s1 = (page.evaluate(f"{explorer}.cubeScreen({e.tolist()})") for e in ends)
-        page.mouse.move(s0["x"], s0["y"])
-        page.mouse.down()
-        for k in range(1, 11):
-            page.mouse.move(s0["x"] + k / 10 * (s1["x"] - s0["x"]), s0["y"] + k / 10 * (s1["y"] - s0["y"]))
-            page.wait_for_timeout(30)
-        wait_until(page, f"!{explorer}.dragPending()")
+        press_and_drag_slowly(page, s0, s1)
         posed = complex_of(state(page)["hinges"])
         assert np.max(chain.closure_residual(posed)) <= 1e-12
         assert np.max(np.abs(posed - target)) < 1e-3, view  # a pixel is ~0.01 of the picture
