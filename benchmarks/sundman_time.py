@@ -31,6 +31,7 @@ from charts.suspension_symbolic import SuspensionFamily
 from linkage import Chain
 from linkage.constraints import ChainSystem, start_state
 from manifold.constrained import ConstrainedLayout, ConstrainedPieces
+from manifold.events import heyoka_events
 from manifold.geodesic_system import Layout, SymbolicPieces
 from manifold.precision import as_fp
 
@@ -125,11 +126,12 @@ def chart_steps(seeds: tuple[int, ...] = (0, 1, 2), q_out: float = 0.05) -> list
         i, a0 = atlas.best_chart(p0)
         c0 = atlas.charts[i].coefficients(a0, v0)
         pars = Layout.of(family).pack([chain.L], np.eye(n - 1), q_out, float)
-        plain = hy.taylor_adaptive(equations, np.concatenate([a0, c0]), compact_mode=True, t_events=pieces.events())
+        events = heyoka_events(pieces.events(), False, float)
+        plain = hy.taylor_adaptive(equations, np.concatenate([a0, c0]), compact_mode=True, t_events=events)
         plain.pars[:] = pars[: len(plain.pars)]
         steps_t = plain.propagate_until(100.0)[3]  # q_out = 0.05 switches well before t = 100 from these starts
         sundman = hy.taylor_adaptive(tau_equations, np.concatenate([a0, c0, [0.0]]), compact_mode=True,
-                                     t_events=pieces.events() + [hy.t_event(t - plain.time)])
+                                     t_events=events + [hy.t_event(t - plain.time)])
         sundman.pars[:] = pars[: len(sundman.pars)]
         steps_tau = sundman.propagate_until(1e12)[3]
         gap = float(np.max(np.abs(sundman.state[:-1] - plain.state)))

@@ -28,9 +28,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from .artefacts import ArtefactStore
 from .chart import gauss_newton
+from .events import Event, event_slopes, heyoka_events, stop_event
 from .family import ChartFamily
 from .geodesic_system import Layout, SymbolicPieces
-from .precision import as_fp, event_fp_kwargs, heyoka_fp_kwargs, is_double, unit_roundoff
+from .precision import as_fp, heyoka_fp_kwargs, is_double, unit_roundoff
 
 
 #: Taylor tolerance used when none is given, per floating type (``benchmarks/taylor_options.py``): in float64,
@@ -108,6 +109,19 @@ class CompiledFamily(ArtefactStore):
             return None
         return self._cfunc(("quality", fp_type), fp_type, lambda P: P.quality, "a")
 
+    def events(self) -> list[Event]:
+        """The family's terminal events (:func:`manifold.events.chart_events`), in the canonical numbering."""
+        return self.pieces(float).events()
+
+    def event_values(self, fp_type: Any = float) -> Any:
+        """Compiled ``(a, c) -> (g_1, ..., g_m, dg_1/dt, ..., dg_m/dt)``: the :meth:`events`' values and their rates
+        along the motion ``a' = c``, for steppers whose events the loop locates on dense output
+        (:func:`manifold.events.first_crossing`); the parameters are a chart's, up to ``q_out``."""
+        def outputs(P: SymbolicPieces) -> list:
+            events = P.events()
+            return [e.expression for e in events] + event_slopes(events, P.a, P.c)
+        return self._cfunc(("event values", fp_type), fp_type, outputs, "ac")
+
     def jacobian(self, fp_type: Any = float) -> Any:
         """Compiled ``a -> (z(a), dz/da)``: ``N`` values then the Jacobian row-major (``N x k``)."""
         return self._cfunc(("jacobian", fp_type), fp_type, lambda P: list(P.z) + [x for row in P.J for x in row], "a")
@@ -173,7 +187,7 @@ class CompiledFamily(ArtefactStore):
         def build() -> Any:
             P = self.pieces(fp_type)
             kw = {} if tol is None else {"tol": fp_type(tol)}
-            events = P.events(backward)
+            events = P.events()
             if velocity is None:
                 equations = P.equations(form)
             else:
@@ -182,9 +196,10 @@ class CompiledFamily(ArtefactStore):
                                                          velocity.carry)
             if factor is not None:
                 equations = P.sundman_equations(factor, equations)
-                events = events + [hy.t_event(equations[-1][0] - 1.0, **event_fp_kwargs(fp_type))]
+                events = events + [stop_event(equations[-1][0])]
             return hy.taylor_adaptive(equations, as_fp(np.zeros(len(equations)), fp_type), compact_mode=compact_mode,
-                                      opt_level=opt_level, t_events=events, **kw, **heyoka_fp_kwargs(fp_type))
+                                      opt_level=opt_level, t_events=heyoka_events(events, backward, fp_type), **kw,
+                                      **heyoka_fp_kwargs(fp_type))
 
         with self._lend(key, build) as ta:
             yield ta

@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .budget import DEFAULT_BUDGET, Budget, spending, spent_message
 from .compiled import compiled
+from .events import WRAP
 from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible, settled
 from .metric import InducedMetric
 from .precision import as_fp, resolve_fp_type, unit_roundoff
@@ -166,6 +167,7 @@ def solve_chart_exp_ode(
     atlas, num, k = metric.atlas, sol.chart_numerics, metric.atlas.dim
     energy_tol = stepper.relative_tolerance(fp_type)
     family = compiled(atlas.charts[0].family)
+    events = family.events()  # what each event index means: a switch or a wrap (manifold.events)
     two_pi = 8 * np.arctan(as_fp(1.0, fp_type))  # 2 pi exact to fp_type
     backward = t_end < 0
     sign = -1.0 if backward else 1.0
@@ -217,9 +219,9 @@ def solve_chart_exp_ode(
                 elif adv.failure is not None:
                     status, message = SolveStatus.STEPPER_FAILED, f"integration failed at t = {t}: {adv.failure} (chart {atlas.ids[i]})"
                 break
-            if adv.event >= family.n_quality:  # a periodic parameter left [-pi, pi]: wrap it, same chart
-                p = family.family.periodic[(adv.event - family.n_quality) // 2]
-                a[p] += -two_pi if (adv.event - family.n_quality) % 2 == 0 else two_pi
+            event = events[adv.event]
+            if event.kind == WRAP:  # a periodic parameter left [-pi, pi]: wrap it, same chart
+                a[event.parameter] += two_pi if event.shift > 0 else -two_pi
                 n_wraps += 1
                 continue
             if len(sol.switches) >= max_switches:

@@ -12,8 +12,8 @@ velocity coefficients ``c = a'``:
 Runtime parameters (one compiled system serves every chart of a family):
 ``par[0 .. p-1]`` the family parameters ``theta``, then the upper triangle of
 ``B`` row by row, then the switch threshold ``q_out`` (:class:`Layout`).
-Terminal events ``quality_m(a) - q_out`` (direction: decreasing) stop the
-integration before a chart's singular set.  Compiling and caching is the job of
+Terminal events ``quality_m(a) - q_out`` (falling) stop the integration before a
+chart's singular set (:mod:`manifold.events` declares them).  Compiling and caching is the job of
 :mod:`manifold.compiled`.
 """
 
@@ -26,9 +26,10 @@ import heyoka as hy
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .events import Event, chart_events
 from .expression_linalg import block_triangular_order, cholesky_solve
 from .family import ChartFamily
-from .precision import as_fp, event_fp_kwargs
+from .precision import as_fp
 
 FORMS = ("embedded", "christoffel")
 #: Name of the segment-time variable ``u`` of :meth:`SymbolicPieces.sundman_equations`.
@@ -306,24 +307,7 @@ class SymbolicPieces:
         u = hy.expression(SUNDMAN_TIME)
         return [(lhs, s * rhs) for lhs, rhs in equations] + [(u, s * hy.par[lay.span_index])]
 
-    def events(self, backward: bool = False) -> list:
-        """Terminal events: ``quality_m(a) - q_out`` (decreasing), then ``a_p -+ pi`` for periodic ``a_p``.
-
-        The first ``len(self.quality)`` events ask for a chart switch; each
-        periodic parameter ``a_p`` then has two: leaving ``[-pi, pi]`` upward
-        and downward (a wrap by ``-+ 2 pi``, same chart).  heyoka's event
-        directions refer to increasing time, so a backward integration
-        (``backward=True``) needs them mirrored.
-        """
-        q_out = hy.par[self.layout.q_out_index]
-        up, down = hy.event_direction.positive, hy.event_direction.negative
-        if backward:
-            up, down = down, up
-        fp = event_fp_kwargs(self.fp_type)
-        events = [hy.t_event(e - q_out, direction=down, **fp) for e in self.quality]
-        for i in self.family.periodic:
-            events += [
-                hy.t_event(self.a[i] - hy.pi, direction=up, **fp),
-                hy.t_event(self.a[i] + hy.pi, direction=down, **fp),
-            ]
-        return events
+    def events(self) -> list[Event]:
+        """The family's terminal events, declared once (:func:`manifold.events.chart_events`): switch events
+        ``quality_m(a) - q_out``, then two wraps per periodic parameter."""
+        return chart_events(self)

@@ -2,15 +2,23 @@
 
 The atlas loop (:func:`manifold.geodesic_solver.solve_chart_exp_ode`) is
 written once; a stepper only integrates the active chart's geodesic equations
-from ``(t, y)`` until ``t_final`` or a terminal event, and says which.  Events
-are numbered as in :meth:`~manifold.geodesic_system.SymbolicPieces.events`:
-first the ``n_quality`` switch events, then two wrap events per periodic
-parameter.
+from ``(t, y)`` until ``t_final`` or a terminal event, and says which.  The
+events are declared once (:mod:`manifold.events`), numbered as in
+:func:`~manifold.events.chart_events`: first the ``n_quality`` switch events,
+then two wrap events per periodic parameter.
 
-To add a stepper, subclass :class:`Stepper` and implement :meth:`Stepper.session`:
-a context manager that prepares what the stepper needs for one solve
-(compiled code, private mutable state) and yields an ``advance`` function
-returning an :class:`Advance`.
+Two kinds of stepper:
+
+* a :class:`DenseStepper` only steps: subclass it and implement
+  :meth:`DenseStepper.stepping`, which yields the accepted steps with their
+  dense interpolants; the events are located on them by the shared
+  :func:`locate_events` (:class:`ScipyStepper` is one);
+* a :class:`Stepper` that locates the events itself implements
+  :meth:`Stepper.session`, a context manager that prepares what it needs for
+  one solve (compiled code, private mutable state) and yields an ``advance``
+  function returning an :class:`Advance`: :class:`TaylorStepper` compiles the
+  events into heyoka's integrator (:func:`manifold.events.heyoka_events`), whose
+  root finding on the Taylor polynomials misses no crossing inside a step.
 """
 
 from __future__ import annotations
@@ -24,10 +32,12 @@ from typing import Any
 import heyoka as hy
 import numpy as np
 from numpy.typing import NDArray
-from scipy.integrate import solve_ivp
+import scipy.integrate
+from scipy.integrate import OdeSolution
 
 from .budget import allowance, dense_bytes_per_step, spend
 from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
+from .events import first_crossing
 from .interrupt import propagate_until
 from .precision import as_fp, is_double, unit_roundoff
 from .progress import step_callback
@@ -229,18 +239,139 @@ def terminal_event(outcome: Any, n_events: int) -> tuple[int | None, str | None]
     return (event, None) if 0 <= event < n_events else (None, str(outcome))
 
 
-class ScipyStepper(Stepper):
-    """``scipy.integrate.solve_ivp`` on the family's compiled acceleration (float64 only), for comparisons.
+@dataclass
+class Step:
+    """One accepted step of a :class:`DenseStepper`, from ``t_old`` to ``t``.
+
+    ``y`` is the state at ``t``; ``interpolant`` the step's dense output, called as scipy's
+    ``DenseOutput``: at a time inside the step it gives the state (shape ``(n,)``), at an array of
+    times the states as columns (``(n, len(ts))``).
+    """
+
+    t_old: float
+    t: float
+    y: NDArray
+    interpolant: Callable[[Any], NDArray]
+
+
+class StepperFailure(Exception):
+    """A :class:`DenseStepper` could not take its next step; the message says why."""
+
+
+#: ``steps(t, y, t_final, pars) -> Iterator[Step]``: the accepted steps from ``(t, y)`` toward ``t_final``.
+StepsFunction = Callable[[float, NDArray, float, NDArray], Iterator[Step]]
+
+
+class DenseStepper(Stepper):
+    """A stepper that only steps: the events are located on its dense output, by the shared locator.
+
+    A subclass implements :meth:`stepping`; its :meth:`session` runs the steps
+    and stops them at the family's first event (:func:`locate_events`), so the
+    chart switches and wraps come with it.  float64 only (the locator finds
+    roots in float64).
+    """
+
+    @abstractmethod
+    def stepping(self, family: CompiledFamily, *, form: str, backward: bool) -> Any:
+        """Context manager yielding a :data:`StepsFunction` for one solve.
+
+        ``steps(t, y, t_final, pars)`` integrates the active chart's geodesic
+        equations in the state ``(a, c)`` (``family.acceleration(float, form)``
+        with the chart's parameters ``pars``) from ``(t, y)`` toward
+        ``t_final`` and yields each accepted :class:`Step`, ending at
+        ``t_final``; it raises :class:`StepperFailure` where it breaks down.
+        """
+
+    @contextmanager
+    def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
+                switching: bool) -> Iterator[AdvanceFunction]:
+        if not is_double(fp_type):
+            raise ValueError(f"the {self.name} stepper runs in float64 only, got fp_type = {fp_type!r}")
+        values = family.event_values(float)
+        directions = np.array([e.direction for e in family.events()])
+        with self.stepping(family, form=form, backward=backward) as steps:
+            def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
+                pars = np.asarray(pars, dtype=float)
+
+                def at(state: NDArray) -> NDArray:
+                    return values(np.ascontiguousarray(state, dtype=float), pars=pars[: values.nparams])
+
+                y = np.asarray(y, dtype=float)
+                return locate_events(steps(float(t), y, float(t_final), pars), float(t), y, at, directions, dense)
+
+            yield advance
+
+
+def locate_events(steps: Iterator[Step], t: float, y: NDArray, values: Callable[[NDArray], NDArray],
+                  directions: NDArray, dense: bool) -> Advance:
+    """Run ``steps`` from ``(t, y)`` until the first event (:func:`manifold.events.first_crossing`) or their end.
+
+    ``values(state)`` gives the events' values, then their rates ``dg/dt``
+    (:meth:`~manifold.compiled.CompiledFamily.event_values`).  The step in
+    which an event fires is cut at the event, and the state there read on its
+    interpolant (as ``solve_ivp`` does).
+    """
+    m = len(directions)
+    before = values(y)
+    kept: list[Step] = []
+    n_steps, event, failure = 0, None, None
+    try:
+        for step in steps:
+            if step.t == step.t_old:
+                continue
+            n_steps += 1
+            after = values(step.y)
+
+            def on_step(s: float, interpolant: Callable[[Any], NDArray] = step.interpolant) -> NDArray:
+                return values(interpolant(s))[:m]
+
+            hit = first_crossing(directions, on_step, step.t_old, step.t, (before[:m], before[m:]),
+                                 (after[:m], after[m:])) if m else None
+            if hit is not None:
+                event, t_event = hit
+                if t_event != step.t_old:
+                    y_event = step.y if t_event == step.t else np.asarray(step.interpolant(t_event))
+                    kept.append(Step(step.t_old, t_event, y_event, step.interpolant))
+                break
+            if not dense:
+                kept.clear()  # only the end state is needed
+            kept.append(step)
+            before = after
+    except StepperFailure as e:
+        failure = str(e)
+    t_end, y_end = (kept[-1].t, kept[-1].y.copy()) if kept else (t, y.copy())
+    out: DenseOutput | None = None
+    if dense and kept:
+        times = np.array([kept[0].t_old] + [s.t for s in kept])
+        out = CallableDense(OdeSolution(times, [s.interpolant for s in kept]), len(kept), len(y))
+        step_times, states = times[1:], np.array([s.y for s in kept])
+    else:
+        out = PointDense(y_end) if dense else None
+        step_times, states = np.array([t_end]), y_end[None, :]
+    return Advance(t_end, y_end, n_steps, event, step_times, states, out, failure)
+
+
+#: The ``solve_ivp`` methods :class:`ScipyStepper` takes by name.
+SCIPY_METHODS = ("RK23", "RK45", "DOP853", "Radau", "BDF", "LSODA")
+
+
+class ScipyStepper(DenseStepper):
+    """A ``scipy.integrate`` solver, step by step, on the family's compiled acceleration (float64 only), for comparisons.
+
+    It only steps (``OdeSolver.step``); the chart switches and wraps are located on
+    each step's dense output (:class:`DenseStepper`).
 
     Parameters
     ----------
     method
-        Any ``solve_ivp`` method (``"DOP853"``, ``"RK45"``, ``"Radau"``, ...).
+        One of :data:`SCIPY_METHODS` (``"DOP853"``, ``"RK45"``, ``"Radau"``, ...).
     rtol, atol
         scipy's tolerances.
     """
 
     def __init__(self, method: str = "DOP853", rtol: float = 1e-12, atol: float = 1e-12) -> None:
+        if method not in SCIPY_METHODS:
+            raise ValueError(f"method must be one of {SCIPY_METHODS}, got {method!r}")
         self.method = method
         self.rtol = check_real("rtol", rtol, positive=True, at_most=MAX_TOLERANCE)
         self.atol = check_real("atol", atol, positive=True, at_most=MAX_TOLERANCE)
@@ -253,50 +384,24 @@ class ScipyStepper(Stepper):
         return f"ScipyStepper({self.method!r}, rtol={self.rtol!r}, atol={self.atol!r})"
 
     @contextmanager
-    def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
-                switching: bool) -> Iterator[AdvanceFunction]:
-        if not is_double(fp_type):
-            raise ValueError(f"the scipy stepper runs in float64 only, got fp_type = {fp_type!r}")
+    def stepping(self, family: CompiledFamily, *, form: str, backward: bool) -> Iterator[StepsFunction]:
         k = family.family.dim
         acc = family.acceleration(float, form)
-        qcf = family.quality(float) if switching else None
-        current = {"pars": np.zeros(0)}
-        events: list = []  # scipy's events, each with its index in the canonical numbering
-        indices: list[int] = []
-        if qcf is not None:
-            for m in range(family.n_quality):
-                def quality(t: float, y: NDArray, m: int = m) -> float:
-                    pars = current["pars"]
-                    return qcf(y[:k], pars=pars[: qcf.nparams])[m] - pars[family.layout.q_out_index]
-                events.append(_terminal(quality, -1))
-                indices.append(m)
-        for w, p in enumerate(family.family.periodic):
-            events += [_terminal(lambda t, y, p=p: y[p] - np.pi, 1), _terminal(lambda t, y, p=p: y[p] + np.pi, -1)]
-            indices += [family.n_quality + 2 * w, family.n_quality + 2 * w + 1]
-        # scipy's event directions follow the integration (unlike heyoka's): no mirroring when backward
+        solver_class = getattr(scipy.integrate, self.method)
 
-        def rhs(_t: float, y: NDArray) -> NDArray:
-            return np.concatenate([y[k:], acc(np.ascontiguousarray(y), pars=current["pars"][: acc.nparams])])
+        def steps(t: float, y: NDArray, t_final: float, pars: NDArray) -> Iterator[Step]:
+            acc_pars = pars[: acc.nparams]
 
-        def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
-            current["pars"] = np.asarray(pars, dtype=float)
-            res = solve_ivp(rhs, (float(t), float(t_final)), np.asarray(y, dtype=float), method=self.method,
-                            rtol=self.rtol, atol=self.atol, events=events or None, dense_output=dense)
-            n_steps = len(res.t) - 1
-            out = CallableDense(res.sol, n_steps, 2 * k) if dense and res.sol is not None else None
-            event, failure = None, None
-            if res.status == -1:
-                failure = f"{self.method} failed at t = {res.t[-1]}: {res.message}"
-            elif res.status == 1:
-                event = indices[next(m for m, te in enumerate(res.t_events) if len(te))]
-            y_end = res.y[:, -1].copy()
-            states = res.y[:, 1:].T if dense else y_end[None, :]
-            times = res.t[1:] if dense else res.t[-1:]
-            return Advance(res.t[-1], y_end, n_steps, event, times, states, out, failure)
+            def rhs(_t: float, y: NDArray) -> NDArray:
+                return np.concatenate([y[k:], acc(np.ascontiguousarray(y), pars=acc_pars)])
 
-        yield advance
+            if t == t_final:
+                return
+            solver = solver_class(rhs, t, y, t_final, rtol=self.rtol, atol=self.atol)
+            while solver.status == "running":
+                message = solver.step()
+                if solver.status == "failed":
+                    raise StepperFailure(f"{self.method} failed at t = {solver.t}: {message}")
+                yield Step(solver.t_old, solver.t, solver.y.copy(), solver.dense_output())
 
-
-def _terminal(f: Callable, direction: int) -> Callable:
-    f.terminal, f.direction = True, direction  # type: ignore[attr-defined]
-    return f
+        yield steps
