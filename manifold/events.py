@@ -131,7 +131,8 @@ def first_crossing(directions: NDArray, g: Callable[[float], NDArray], t0: float
 
     An event fires in the step where ``h = d g`` (``d`` its direction, both signs for :data:`EITHER`) goes from
     ``h(t0) <= 0`` to ``h(t1) > 0``, or from ``h(t0) < 0`` to ``h(t1) = 0``: one that lands exactly on a step's end
-    fires there, and not again in the next step, which starts on it.  Where ``h`` stays negative at both ends but
+    fires there, and a start exactly on an event heading across it (an angle at ``-pi`` moving down) fires at
+    the start, so the loop acts on it instead of running past.  Where ``h`` stays negative at both ends but
     heads up at ``t0`` and down at ``t1`` (a dip toward zero inside the step), its maximum on the interpolant is
     found, and if it reaches zero, the crossing before it.  Of the events that fire, the earliest along the motion
     wins (ties: the lowest index).  Roots are found by Brent's method to a few units of rounding in ``t``.
