@@ -42,7 +42,7 @@ def solve_nodes(chain: Chain) -> tuple[int, int]:
 def integrator_nodes(chain: Chain) -> int:
     """Nodes of the default chart integrator's Taylor decomposition (float64, in ``t``; hinge masses: ``(a, V)``)."""
     velocity = ConstrainedVelocity(ChainSystem(chain))
-    with compiled(chain.atlas().charts[0].family).integrator(float, velocity=velocity) as ta:
+    with compiled(chain.atlas().charts[0].family).integrator(float, terms=(velocity,)) as ta:
         return len(ta.decomposition)
 
 

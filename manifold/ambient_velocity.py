@@ -35,8 +35,8 @@ undamped.  The last term damps the drift at the rate ``gamma`` of
 :func:`~manifold.constrained.damping_rate` (the hinge method's Baumgarte rate,
 scale-free), and vanishes on the exact solution.
 
-Steppers take it as ``velocity=`` (:class:`~manifold.steppers.TaylorStepper`,
-:class:`~manifold.sundman.SundmanStepper`).  Segments start and end in
+It is an equation term (:mod:`manifold.terms`): steppers take it as ``velocity=``
+(:class:`~manifold.steppers.TaylorStepper`, :class:`~manifold.sundman.SundmanStepper`).  Segments start and end in
 ``(a, c)`` as every stepper's do: :meth:`ConstrainedVelocity.wrap` converts
 on the way in (``V = J c``) and on the way out, dense output included, so the
 engine, switches, energy checks and solutions are unchanged.
@@ -62,17 +62,23 @@ from .compiled import CompiledFamily, Transfer
 from .carried import CarriedTerm
 from .constrained import (ConstrainedGeometry, ConstrainedPieces, ConstrainedSystem, compiled_constrained,
                           damping_rate, speed_scale)
+from .geodesic_system import SymbolicPieces
 from .precision import as_fp
 from .solution import DenseOutput
 from .steppers import Advance, AdvanceFunction
+from .terms import StateTerm
 from .validation import check_real
 
 #: Damping rate of ``V``'s normal drift (:class:`ConstrainedVelocity`), chosen by measurement in ``docs/methods.md``.
 DEFAULT_RATE = 3.0
 
 
-class ConstrainedVelocity:
+class ConstrainedVelocity(StateTerm):
     """Integrate a chart family's geodesics in ``(a, V)``, the normal acceleration from ``system``.
+
+    An equation term (:mod:`manifold.terms`) that sets the state: its parameters are the system's
+    runtime parameters, then the damping rate ``gamma``; its switch map (:meth:`wrap`) converts
+    ``(a, c) <-> (a, V)`` at each segment's ends.
 
     Parameters
     ----------
@@ -120,8 +126,15 @@ class ConstrainedVelocity:
 
     @property
     def n_params(self) -> int:
-        """Number of the system's runtime parameters."""
-        return len(self.parameters(float))
+        """Number of its runtime parameters: the system's, then ``gamma``."""
+        return len(self.parameters(float)) + 1
+
+    def equations(self, pieces: SymbolicPieces, equations: list[tuple], offset: int) -> list[tuple]:
+        """:meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations` with the carried terms, the
+        system's parameters at ``par[offset ..]`` and ``gamma`` after them."""
+        if equations:
+            raise ValueError(f"{self!r} sets the state: it must be the first term")
+        return pieces.ambient_velocity_equations(self.pieces(pieces.fp_type), self.n_params - 1, offset, self.carry)
 
     def pieces(self, fp_type: Any) -> ConstrainedPieces:
         """The system's symbolic equations in ``fp_type``."""
@@ -156,7 +169,7 @@ class ConstrainedVelocity:
         """An :data:`~manifold.steppers.AdvanceFunction` in ``(a, c)`` around ``advance``, which integrates ``(a, V)``.
 
         Each segment starts from ``(a, c)`` and converts once (switches go through the ambient velocity anyway),
-        and appends to the chart's parameters the damping rate ``gamma`` at the segment's energy.
+        and appends to the chart's parameters the system's and the damping rate ``gamma`` at the segment's energy.
         """
         k, N = family.family.dim, family.family.point_dim
         geometry = ConstrainedGeometry(self.system, fp_type) if self.carry else None
@@ -174,7 +187,8 @@ class ConstrainedVelocity:
                 carried = np.concatenate([term.start(geometry, p, v) for term in self.carry])
             ambient = np.concatenate([y[:k], start[N : 2 * N, 0], carried])
             gamma = damping_rate(self._speed_scale, self.rate, float(start[-1, 0]), float(t_final - t))
-            adv = advance(t, ambient, t_final, np.concatenate([pars, as_fp([gamma], fp_type)]), dense)
+            adv = advance(t, ambient, t_final, np.concatenate([pars, self.parameters(fp_type), as_fp([gamma], fp_type)]),
+                          dense)
             out = None if adv.dense is None else _ChartDense(adv.dense, transfer)
             return Advance(adv.t, _chart_states(adv.y[None, :], transfer)[0], adv.n_steps, adv.event, adv.step_times,
                            _chart_states(adv.step_states, transfer), out, adv.failure)

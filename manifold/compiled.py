@@ -18,7 +18,7 @@ default ``~/.cache/heyoka``): a second process skips LLVM's optimisation.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Hashable, Iterator
+from collections.abc import Callable, Hashable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
@@ -28,10 +28,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from .artefacts import ArtefactStore
 from .chart import gauss_newton
-from .events import Event, event_slopes, heyoka_events, stop_event
+from .events import Event, event_slopes, heyoka_events
 from .family import ChartFamily
 from .geodesic_system import Layout, SymbolicPieces
 from .precision import as_fp, heyoka_fp_kwargs, is_double, unit_roundoff
+from .terms import ChartGeodesic, StateTerm, Term
 
 
 #: Taylor tolerance used when none is given, per floating type (``benchmarks/taylor_options.py``): in float64,
@@ -161,42 +162,38 @@ class CompiledFamily(ArtefactStore):
         return self._cfunc(("point", fp_type), fp_type, lambda P: list(P.z), "a")
 
     @contextmanager
-    def integrator(self, fp_type: Any = float, tol: float | None = None, form: str = "embedded",
-                   backward: bool = False, compact_mode: bool = True, opt_level: int = DEFAULT_OPT_LEVEL,
-                   factor: Any = None, velocity: Any = None) -> Iterator[Any]:
+    def integrator(self, fp_type: Any = float, tol: float | None = None, terms: Sequence[Term] | None = None,
+                   backward: bool = False, compact_mode: bool = True,
+                   opt_level: int = DEFAULT_OPT_LEVEL) -> Iterator[Any]:
         """Lend a Taylor integrator of the geodesics with switch events; return it after use.
 
         The caller owns it inside the ``with`` block: set ``state``, ``time``
-        and ``pars`` (:attr:`ChartNumerics.pars`, ``[:len(ta.pars)]``) before each use.
+        and ``pars`` (:attr:`ChartNumerics.pars`, then each term's parameters) before each use.
         ``tol=None`` is :func:`default_tolerance` (1e-14 in float64, the
-        machine epsilon of other types).  ``backward=True`` mirrors the event
-        directions for negative times.  ``compact_mode`` and ``opt_level``
+        machine epsilon of other types).  ``terms`` (:mod:`manifold.terms`) compose the equations, in
+        order: a :class:`~manifold.terms.StateTerm` first (default: ``ChartGeodesic()``, the state ``(a, c)``
+        in the embedded form), each term's parameters after the previous one's from
+        :attr:`~manifold.geodesic_system.Layout.terms_index`, its events after the family's.
+        ``backward=True`` mirrors the event directions for negative times.  ``compact_mode`` and ``opt_level``
         (LLVM's optimisation level, 0..3) are heyoka's compile options; each
-        combination is a separate integrator.  With a ``factor``
-        (:class:`manifold.sundman.TimeFactor`) the equations are those of
-        :meth:`~manifold.geodesic_system.SymbolicPieces.sundman_equations`, with one more
-        terminal event, last: the segment's time ``u`` reaching 1.  With a ``velocity``
-        (:class:`manifold.ambient_velocity.ConstrainedVelocity`) the state is ``(a, V)``, ``V = J c``
-        (:meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`; ``form`` is then unused),
-        with the constraint system's parameters at :meth:`~manifold.geodesic_system.Layout.constraint_index`.
+        combination is a separate integrator.
         """
+        terms = (ChartGeodesic(),) if terms is None else tuple(terms)
+        if not terms or not isinstance(terms[0], StateTerm) or not all(
+                isinstance(t, Term) and not isinstance(t, StateTerm) for t in terms[1:]):
+            raise TypeError(f"terms must be a manifold.terms.StateTerm followed by other Terms, got {terms!r}")
         tol = default_tolerance(fp_type) if tol is None else tol
-        key = ("integrator", fp_type, tol, form if velocity is None else None, backward, compact_mode, opt_level,
-               None if factor is None else factor.key, None if velocity is None else velocity.key)
+        key = ("integrator", fp_type, tol, backward, compact_mode, opt_level, tuple(t.key for t in terms))
 
         def build() -> Any:
             P = self.pieces(fp_type)
             kw = {} if tol is None else {"tol": fp_type(tol)}
-            events = P.events()
-            if velocity is None:
-                equations = P.equations(form)
-            else:
-                offset = self.layout.constraint_index(0 if factor is None else factor.n_params)
-                equations = P.ambient_velocity_equations(velocity.pieces(fp_type), velocity.n_params, offset,
-                                                         velocity.carry)
-            if factor is not None:
-                equations = P.sundman_equations(factor, equations)
-                events = events + [stop_event(equations[-1][0])]
+            equations: list[tuple] = []
+            events, offset = P.events(), self.layout.terms_index
+            for term in terms:
+                equations = term.equations(P, equations, offset)
+                events += term.events(equations)
+                offset += term.n_params
             return hy.taylor_adaptive(equations, as_fp(np.zeros(len(equations)), fp_type), compact_mode=compact_mode,
                                       opt_level=opt_level, t_events=heyoka_events(events, backward, fp_type), **kw,
                                       **heyoka_fp_kwargs(fp_type))

@@ -11,7 +11,8 @@ velocity coefficients ``c = a'``:
 
 Runtime parameters (one compiled system serves every chart of a family):
 ``par[0 .. p-1]`` the family parameters ``theta``, then the upper triangle of
-``B`` row by row, then the switch threshold ``q_out`` (:class:`Layout`).
+``B`` row by row, then the switch threshold ``q_out``, the chart's maps, and
+the equation terms' (:class:`Layout`, :mod:`manifold.terms`).
 Terminal events ``quality_m(a) - q_out`` (falling) stop the integration before a
 chart's singular set (:mod:`manifold.events` declares them).  Compiling and caching is the job of
 :mod:`manifold.compiled`.
@@ -74,17 +75,12 @@ class Layout:
         return self.map_index + N * N + N
 
     @property
-    def span_index(self) -> int:
-        """Index of ``1 / (t_final - t_start)`` of a segment in Sundman's time, after ``M``, ``m`` and ``M^{-1}``;
-        the time factor's own parameters follow it."""
+    def terms_index(self) -> int:
+        """Start of the equation terms' parameters (:mod:`manifold.terms`), after ``M``, ``m`` and ``M^{-1}``: the
+        chart's own end here (:attr:`~manifold.compiled.ChartNumerics.pars`), and each term's block follows in the
+        order of the composition."""
         N = self.n_points * self.block
         return self.inverse_map_index + N * N
-
-    def constraint_index(self, n_factor_params: int) -> int:
-        """Start of a constraint system's parameters (:meth:`SymbolicPieces.ambient_velocity_equations`): after
-        the span and the time factor's ``n_factor_params`` parameters (the span's slot is unused in ``t``); the
-        damping rate ``gamma`` of the normal drift follows them."""
-        return self.span_index + 1 + n_factor_params
 
     def metric_pars(self) -> list[list[hy.expression]]:
         """Symmetric matrix of parameter expressions for ``B``."""
@@ -293,19 +289,19 @@ class SymbolicPieces:
             equations += list(zip(y, hy.subs(term.equations(constrained, y, True), moves)))
         return equations
 
-    def sundman_equations(self, factor: Any, equations: list[tuple]) -> list[tuple]:
+    def sundman_equations(self, factor: Any, equations: list[tuple], offset: int) -> list[tuple]:
         """Geodesic ``equations`` in Sundman's time: ``dy/dtau = s(p) dy/dt`` and ``du/dtau = s(p) / (t_final - origin)``.
 
         ``s`` is ``factor.expression`` (a :class:`manifold.sundman.TimeFactor`) of the ambient point
-        ``p = M z(a) + m`` (:meth:`ambient_point`), with the factor's parameters after :attr:`Layout.span_index`.
+        ``p = M z(a) + m`` (:meth:`ambient_point`); ``1 / (t_final - origin)`` is ``par[offset]``, the factor's
+        parameters follow it.
         ``u = (t - origin) / (t_final - origin)`` is the segment's time (``origin``: its start, moved forward by
         the stepper's restarts), in ``[0, 1]`` so that it does not widen heyoka's error norm (which is relative
         to the state's largest component); the variable is the last of the state.
         """
-        lay = self.layout
-        s = factor.expression(self.ambient_point(), [hy.par[lay.span_index + 1 + j] for j in range(factor.n_params)])
+        s = factor.expression(self.ambient_point(), [hy.par[offset + 1 + j] for j in range(factor.n_params)])
         u = hy.expression(SUNDMAN_TIME)
-        return [(lhs, s * rhs) for lhs, rhs in equations] + [(u, s * hy.par[lay.span_index])]
+        return [(lhs, s * rhs) for lhs, rhs in equations] + [(u, s * hy.par[offset])]
 
     def events(self) -> list[Event]:
         """The family's terminal events, declared once (:func:`manifold.events.chart_events`): switch events

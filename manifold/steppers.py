@@ -39,9 +39,10 @@ from .budget import allowance, dense_bytes_per_step, spend
 from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
 from .events import first_crossing
 from .interrupt import propagate_until
-from .precision import as_fp, is_double, unit_roundoff
+from .precision import is_double, unit_roundoff
 from .progress import step_callback
 from .solution import CallableDense, DenseOutput, PointDense, SecondOrderDense, TaylorDense
+from .terms import ChartGeodesic, StateTerm
 from .validation import check_bool, check_index, check_real
 
 #: Largest accepted tolerance: looser runs are not geodesics (``tol = 1`` gave a 21 % energy error).
@@ -117,9 +118,10 @@ class TaylorStepper(Stepper):
         faster (``benchmarks/taylor_options.py``).
     velocity
         ``None`` (default): the state is ``(a, c)`` (the embedded or Christoffel
-        form).  A :class:`manifold.ambient_velocity.ConstrainedVelocity`: the
+        form, :class:`~manifold.terms.ChartGeodesic`).  A :class:`manifold.ambient_velocity.ConstrainedVelocity`: the
         state is ``(a, J c)`` and constraints give the acceleration, without
-        the chart's second derivatives (a ``form`` other than ``"embedded"`` is then refused).
+        the chart's second derivatives (a ``form`` other than ``"embedded"`` is then refused).  Any other
+        :class:`~manifold.terms.StateTerm` sets the state the same way.
     """
 
     name = "taylor"
@@ -129,11 +131,9 @@ class TaylorStepper(Stepper):
         self.tol = None if tol is None else check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
         self.compact_mode = check_bool("compact_mode", compact_mode)
         self.opt_level = check_index("opt_level", opt_level, 4)
-        # duck-typed, since manifold.ambient_velocity imports this module
-        if velocity is not None and (isinstance(velocity, type) or not all(
-                hasattr(velocity, attr) for attr in ("wrap", "check", "key", "pieces", "n_params", "parameters"))):
-            raise TypeError(f"velocity must be None or a manifold.ambient_velocity.ConstrainedVelocity instance, "
-                            f"got {velocity!r}")
+        if velocity is not None and not isinstance(velocity, StateTerm):
+            raise TypeError(f"velocity must be None or a manifold.ambient_velocity.ConstrainedVelocity instance "
+                            f"(a manifold.terms.StateTerm), got {velocity!r}")
         self.velocity = velocity
         if velocity is not None:
             self.name = f"{type(self).name} (a, J c)"  # the solution's method says which state was integrated
@@ -147,23 +147,19 @@ class TaylorStepper(Stepper):
         velocity = "" if self.velocity is None else f", velocity={self.velocity!r}"
         return f"TaylorStepper(tol={self.tol!r}, compact_mode={self.compact_mode}, opt_level={self.opt_level}{velocity})"
 
+    def state(self, family: CompiledFamily, form: str) -> StateTerm:
+        """The term that sets the integrated state: ``velocity``, or the chart geodesic in ``form``; checked."""
+        state = ChartGeodesic(form) if self.velocity is None else self.velocity
+        state.check(family, form)
+        return state
+
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
                 switching: bool) -> Iterator[AdvanceFunction]:
-        velocity = self.velocity
-        if velocity is not None:
-            velocity.check(family, form)
-        with family.integrator(fp_type, self.tol, form, backward, self.compact_mode, self.opt_level,
-                               velocity=velocity) as ta:
-            if velocity is None:
-                yield lambda t, y, t_final, pars, dense: taylor_advance(ta, t, y, t_final, pars, dense, fp_type)
-                return
-            # the constraint system's parameters after the chart's and the (unused in t) span's slot, then what
-            # the wrap appends to the chart's (the damping rate of the normal drift)
-            tail = np.concatenate([as_fp([0.0], fp_type), velocity.parameters(fp_type)])
-            span = family.layout.span_index
-            yield velocity.wrap(lambda t, y, t_final, pars, dense: taylor_advance(
-                ta, t, y, t_final, np.concatenate([pars[:span], tail, pars[span:]]), dense, fp_type), family, fp_type)
+        state = self.state(family, form)
+        with family.integrator(fp_type, self.tol, (state,), backward, self.compact_mode, self.opt_level) as ta:
+            yield state.wrap(lambda t, y, t_final, pars, dense: taylor_advance(ta, t, y, t_final, pars, dense, fp_type),
+                             family, fp_type)
 
 
 def taylor_relative_tolerance(tol: float | None, fp_type: Any) -> float:

@@ -38,11 +38,14 @@ from numpy.typing import NDArray
 
 from .budget import allowance, dense_bytes_per_step, spend
 from .compiled import CompiledFamily
+from .events import Event, stop_event
+from .geodesic_system import SymbolicPieces
 from .interrupt import propagate_until
 from .precision import as_fp, unit_roundoff
 from .progress import step_callback
 from .solution import DenseOutput, PointDense, TaylorDense, polynomial_values
 from .steppers import Advance, TaylorStepper, terminal_event
+from .terms import Term
 
 #: Bound on ``|tau|`` of one segment; the segment ends by its ``u = 1`` event long before (``tau`` is about
 #: ``t / s``, and ``s`` stays positive on the manifold).
@@ -82,6 +85,37 @@ class TimeFactor(ABC):
     @abstractmethod
     def parameters(self) -> NDArray:
         """The values of ``kappa`` (float64, ``n_params``)."""
+
+
+class SundmanTime(Term):
+    """Sundman's time as an equation term (:mod:`manifold.terms`): the right-hand sides times ``s(p)``, the segment's
+    time ``u`` as one more state slot, and its stop event ``u = 1`` (:func:`manifold.events.stop_event`).
+
+    Its parameters: ``1 / (t_final - origin)``, then the factor's (:meth:`~manifold.geodesic_system.SymbolicPieces.sundman_equations`).
+    Its switch map: ``u`` starts at 0 on every segment (:func:`sundman_advance`).
+    """
+
+    def __init__(self, factor: TimeFactor) -> None:
+        if not isinstance(factor, TimeFactor):
+            raise TypeError(f"factor must be a manifold.sundman.TimeFactor, got {type(factor).__name__}")
+        self.factor = factor
+
+    def __repr__(self) -> str:
+        return f"SundmanTime({self.factor!r})"
+
+    @property
+    def key(self) -> Hashable:
+        return ("sundman", self.factor.key)
+
+    @property
+    def n_params(self) -> int:
+        return 1 + self.factor.n_params
+
+    def equations(self, pieces: SymbolicPieces, equations: list[tuple], offset: int) -> list[tuple]:
+        return pieces.sundman_equations(self.factor, equations, offset)
+
+    def events(self, equations: list[tuple]) -> list[Event]:
+        return [stop_event(equations[-1][0])]
 
 
 class SundmanDense:
@@ -135,8 +169,8 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
                     dense: bool, fp_type: Any, span_index: int) -> Advance:
     """Run the Sundman integrator ``ta`` of the chart from ``(t, y)`` to ``t_final`` or its first switch event.
 
-    ``pars`` are the chart's (:attr:`~manifold.compiled.ChartNumerics.pars`: up to ``span_index``; what follows,
-    a velocity's wrap appended, goes last), ``factor_pars`` the time factor's.  Times in the result are physical; a segment that reaches
+    ``pars`` are the chart's (:attr:`~manifold.compiled.ChartNumerics.pars`) and the state term's, up to
+    ``span_index`` (:class:`SundmanTime`'s first parameter), ``factor_pars`` the time factor's.  Times in the result are physical; a segment that reaches
     ``t_final`` ends exactly there (its ``u = 1`` event, located by heyoka to a rounding).
 
     Numerical trap: ``u`` is a state variable, so each step rounds it by ``eps |u|``, and ``t`` by
@@ -153,8 +187,9 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
         return Advance(t, y, 0, None, np.array([t]), y[None, :], PointDense(y) if dense else None)
     ta.state[:] = np.append(y, fp_type(0.0))
     ta.time = fp_type(0.0)
-    ta.pars[:] = np.concatenate([pars[:span_index], as_fp([1.0], fp_type) / (t_final - t), factor_pars,
-                                 pars[span_index:]])[: len(ta.pars)]
+    if len(pars) != span_index:
+        raise ValueError(f"Sundman's time reads its span at par[{span_index}], after {len(pars)} parameters")
+    ta.pars[:] = np.concatenate([pars, as_fp([1.0], fp_type) / (t_final - t), factor_pars])[: len(ta.pars)]
     ta.reset_cooldowns()
     progress = step_callback()
     n_events, forward = len(ta.t_events), float(t_final - t) > 0  # dt/dtau > 0: tau runs with t
@@ -230,8 +265,7 @@ class SundmanStepper(TaylorStepper):
     name = "taylor-sundman"
 
     def __init__(self, factor: TimeFactor, tol: float | None = None, **options: Any) -> None:
-        if not isinstance(factor, TimeFactor):
-            raise TypeError(f"factor must be a manifold.sundman.TimeFactor, got {type(factor).__name__}")
+        self.time = SundmanTime(factor)  # refuses anything but a TimeFactor
         super().__init__(tol, **options)
         self.factor = factor
 
@@ -243,18 +277,15 @@ class SundmanStepper(TaylorStepper):
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
                 switching: bool) -> Iterator[Any]:
-        velocity = self.velocity
         if self.factor.ambient_dim != family.family.point_dim:
             raise ValueError(f"factor: {self.factor!r} takes points of R^{self.factor.ambient_dim}, the charts of "
                              f"{family.family!r} give points of R^{family.family.point_dim}")
+        state = self.state(family, form)
         kappa = as_fp(self.factor.parameters(), fp_type)
-        if velocity is not None:
-            velocity.check(family, form)
-            kappa = np.concatenate([kappa, velocity.parameters(fp_type)])  # the constraint system's follow the factor's
-        span_index = family.layout.span_index
-        with family.integrator(fp_type, self.tol, form, backward, self.compact_mode, self.opt_level,
-                               factor=self.factor, velocity=velocity) as ta:
+        span_index = family.layout.terms_index + state.n_params  # Sundman's parameters follow the state term's
+        with family.integrator(fp_type, self.tol, (state, self.time), backward, self.compact_mode,
+                               self.opt_level) as ta:
             def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
                 return sundman_advance(ta, t, y, t_final, pars, kappa, dense, fp_type, span_index)
 
-            yield advance if velocity is None else velocity.wrap(advance, family, fp_type)
+            yield state.wrap(advance, family, fp_type)

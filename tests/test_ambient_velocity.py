@@ -180,10 +180,10 @@ def _planted_drift_run(rate: float, dt: float, drift: float) -> tuple[float, flo
     n = r - tangent(a0, r)[0]
     velocity = ConstrainedVelocity(system, rate=rate)
     gamma = damping_rate(speed_scale(system), rate, E0, dt)
-    with family.integrator(float, velocity=velocity) as ta:
+    with family.integrator(float, terms=(velocity,)) as ta:
         ta.state[:] = np.concatenate([a0, V0 + drift * n / np.linalg.norm(n)])
         ta.time = 0.0
-        ta.pars[:] = np.concatenate([numerics.pars, [0.0], velocity.parameters(float), [gamma]])[: len(ta.pars)]
+        ta.pars[:] = np.concatenate([numerics.pars, velocity.parameters(float), [gamma]])[: len(ta.pars)]
         ta.reset_cooldowns()
         assert ta.propagate_until(dt)[0] == hy.taylor_outcome.time_limit  # no switch event on the way
         y = np.array(ta.state)

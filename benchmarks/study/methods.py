@@ -24,7 +24,8 @@ from linkage.time_factor import ChainTimeFactor
 from manifold import GeodesicIntegrationError, ScipyStepper, compiled, solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.constrained import compiled_constrained
-from manifold.sundman import SundmanStepper
+from manifold.sundman import SundmanStepper, SundmanTime
+from manifold.terms import ChartGeodesic
 
 from ..baselines.rattle import integrate_rattle
 from ..baselines.seed_geodesics import integrate_seed_rk4
@@ -66,9 +67,10 @@ def _warm_up(chain: Chain, tol=None, scipy: bool = False, factor=None, velocity=
     family.transfer(float)
     if scipy:
         family.acceleration(float)
-        family.quality(float)
+        family.event_values(float)
     else:
-        with family.integrator(float, tol, factor=factor, velocity=velocity):
+        state = ChartGeodesic() if velocity is None else velocity
+        with family.integrator(float, tol, (state,) if factor is None else (state, SundmanTime(factor))):
             pass
 
 
