@@ -19,9 +19,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from linkage import Chain
-from manifold import ScipyStepper, TaylorStepper, compiled, solve_chart_exp_ode
+from manifold import ScipyStepper, SolveStatus, TaylorStepper, compiled, solve_chart_exp_ode
 from manifold.events import EITHER, FALLING, RISING, SWITCH, WRAP, first_crossing
-from manifold.steppers import DenseStepper, Step, locate_events
+from manifold.steppers import DenseStepper, Step, StepperFailure, locate_events
 
 from .sphere_family import great_circle, sphere_metric
 
@@ -277,3 +277,26 @@ def test_a_stepper_that_only_steps_takes_the_same_switches(T):
     assert np.abs(_switch_log(rk4)[1] - _switch_log(taylor)[1]).max() <= 1e-8
     ts = np.linspace(0, T, 101)
     assert np.abs(rk4(ts)[0] - great_circle(p0, v0, ts)).max() <= 1e-8  # dense output across the switches
+
+
+class BreaksDown(RungeKutta4):
+    """Fails after a few steps, as a stepper may (a step size underflow, a Newton failure)."""
+
+    @contextmanager
+    def stepping(self, family, *, form, backward) -> Iterator[Any]:
+        with super().stepping(family, form=form, backward=backward) as steps:
+            def failing(t, y, t_final, pars):
+                for n, step in enumerate(steps(t, y, t_final, pars)):
+                    if n == 3:
+                        raise StepperFailure(f"no step from t = {step.t_old}")
+                    yield step
+
+            yield failing
+
+
+def test_a_stepper_that_breaks_down_ends_the_solve_with_its_reason():
+    metric = sphere_metric()
+    p0, v0 = _sphere_start()
+    sol = solve_chart_exp_ode(metric, p0, v0, 1.0, stepper=BreaksDown(1e-2), throw=False)
+    assert sol.status is SolveStatus.STEPPER_FAILED and "no step from t = 0.03" in sol.message
+    assert float(sol.t_reached) == pytest.approx(0.03, abs=1e-15)  # the three steps taken are kept
