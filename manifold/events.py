@@ -120,6 +120,14 @@ def first_crossing(directions: NDArray, g: Callable[[float], NDArray], t0: float
                    start: tuple[NDArray, NDArray], end: tuple[NDArray, NDArray]) -> tuple[int, float] | None:
     """The first event crossed in the step from ``t0`` to ``t1`` (either order), as ``(index, time)``; ``None`` if none.
 
+    An event fires in the step where ``h = d g`` (``d`` its direction, both signs for :data:`EITHER`) goes from
+    ``h(t0) <= 0`` to ``h(t1) > 0``, or from ``h(t0) < 0`` to ``h(t1) = 0``: one that lands exactly on a step's end
+    fires there, and a start exactly on an event heading across it (an angle at ``-pi`` moving down) fires at
+    the start, so the loop acts on it instead of running past.  Where ``h`` stays negative at both ends but
+    heads up at ``t0`` and down at ``t1`` (a dip toward zero inside the step), its maximum on the interpolant is
+    found, and if it reaches zero, the crossing before it.  Of the events that fire, the earliest along the motion
+    wins (ties: the lowest index).  Roots are found by Brent's method to a few units of rounding in ``t``.
+
     Parameters
     ----------
     directions
@@ -128,14 +136,6 @@ def first_crossing(directions: NDArray, g: Callable[[float], NDArray], t0: float
         The events' values at a time inside the step, read on the stepper's dense interpolant.
     start, end
         ``(values, slopes)`` of the events at ``t0`` and ``t1``: ``g`` and ``dg/dt``.
-
-    An event fires in the step where ``h = d g`` (``d`` its direction, both signs for :data:`EITHER`) goes from
-    ``h(t0) <= 0`` to ``h(t1) > 0``, or from ``h(t0) < 0`` to ``h(t1) = 0``: one that lands exactly on a step's end
-    fires there, and a start exactly on an event heading across it (an angle at ``-pi`` moving down) fires at
-    the start, so the loop acts on it instead of running past.  Where ``h`` stays negative at both ends but
-    heads up at ``t0`` and down at ``t1`` (a dip toward zero inside the step), its maximum on the interpolant is
-    found, and if it reaches zero, the crossing before it.  Of the events that fire, the earliest along the motion
-    wins (ties: the lowest index).  Roots are found by Brent's method to a few units of rounding in ``t``.
     """
     (g0, s0), (g1, s1) = start, end
     forward = 1.0 if t1 >= t0 else -1.0
