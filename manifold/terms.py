@@ -53,7 +53,11 @@ class Term(ABC):
         applied; its parameters are ``par[offset .. offset + n_params - 1]``."""
 
     def events(self, equations: list[tuple]) -> list[Event]:
-        """Its terminal events, on the composed ``equations`` (none by default)."""
+        """Its terminal events, on the composed ``equations`` (none by default), numbered after the family's.
+
+        The atlas loop acts on the family's switch and wrap events; a term's own are acted on by the stepper
+        that integrates it (Sundman's stop ends the segment at ``t_final``: :func:`manifold.sundman.sundman_advance`).
+        """
         return []
 
 
