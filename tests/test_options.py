@@ -1,0 +1,110 @@
+"""The option groups (manifold.options): each checks its fields once, and a keyword that moved is refused by name."""
+
+import inspect
+import pickle
+import re
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from manifold import Precision, SaveAt
+from manifold.options import MOVED_OPTIONS, check_group, refuse_moved_options, takes_option_groups
+from manifold.precision import MultiPrecision
+
+
+def test_save_at_keeps_its_own_read_only_copy_of_the_grid():
+    times = np.array([0.0, 0.5, 1.0])
+    save = SaveAt(t_eval=times)
+    times[1] = 0.9  # the caller's array changes; the group does not
+    assert save.t_eval is not None and list(save.t_eval) == [0.0, 0.5, 1.0]
+    with pytest.raises(ValueError):
+        save.t_eval[0] = 1.0
+    assert SaveAt().t_eval is None and SaveAt().dense is True and SaveAt().grid(1.0) is None
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.floats(0.1, 1e3), st.lists(st.floats(0.0, 1.0), min_size=1, max_size=20), st.booleans())
+def test_save_at_accepts_any_grid_in_integration_order(t_final, fractions, backward):
+    T = -t_final if backward else t_final
+    grid = np.sort(np.array(fractions)) * T
+    np.testing.assert_array_equal(SaveAt(t_eval=grid).grid(T), grid)
+    if len(set(grid)) > 1:  # the reverse order is refused, naming t_eval and the interval
+        with pytest.raises(ValueError, match="t_eval must be a 1-d array of times within"):
+            SaveAt(t_eval=grid[::-1]).grid(T)
+
+
+@pytest.mark.parametrize("t_eval, error, match", [
+    ([[0.0, 1.0]], ValueError, "t_eval must be a 1-d array"),
+    ([0.0, np.nan], ValueError, "t_eval must be finite"),
+    ([0.0, 1j], TypeError, "t_eval must be a real array"),
+    (["0", "1"], TypeError, "t_eval must be a real array"),
+    ([True, False], TypeError, "t_eval must be a real array"),
+])
+def test_save_at_refuses_a_bad_grid_by_name(t_eval, error, match):
+    with pytest.raises(error, match=match):
+        SaveAt(t_eval=t_eval)
+
+
+def test_save_at_refuses_a_grid_outside_the_interval():
+    with pytest.raises(ValueError, match=r"within \[0, 2\]"):
+        SaveAt(t_eval=[0.0, 3.0]).grid(2.0)
+
+
+@pytest.mark.parametrize("dense", [1, 0, "no", None])
+def test_save_at_dense_must_be_a_bool(dense):
+    with pytest.raises(TypeError, match="dense must be True or False"):
+        SaveAt(dense=dense)
+
+
+def test_precision_resolves_names_once():
+    assert Precision().fp_type is float and Precision().tol is None
+    assert Precision("longdouble").fp_type is np.longdouble
+    assert Precision("float64", 1e-10) == Precision(float, 1e-10)
+    assert Precision("mp256").fp_type == MultiPrecision(256)
+    p = Precision(np.longdouble, 1e-12)
+    assert pickle.loads(pickle.dumps(p)) == p and hash(p) == hash(Precision("longdouble", 1e-12))
+
+
+@pytest.mark.parametrize("tol", [0, -1e-10, 0.5, np.nan, np.inf, "1e-10", True])
+def test_precision_refuses_a_tolerance_outside_its_range(tol):
+    with pytest.raises(ValueError, match=r"tol must be a real number in \(0, 0.01\]"):
+        Precision(tol=tol)
+
+
+def test_precision_refuses_an_unknown_type():
+    with pytest.raises(ValueError, match="fp_type must be one of"):
+        Precision("float32")
+    with pytest.raises(TypeError):
+        Precision(np.float32)
+
+
+def test_a_group_of_the_wrong_kind_is_refused_by_name():
+    with pytest.raises(TypeError, match=r"save must be a manifold.SaveAt \(save=SaveAt\(...\)\), got"):
+        check_group("save", [0.0, 1.0], SaveAt)
+    assert check_group("precision", Precision(), Precision) == Precision()
+
+
+@pytest.mark.parametrize("name, home", [
+    ("t_eval", "save=SaveAt(t_eval=...)"),
+    ("dense", "save=SaveAt(dense=...)"),
+    ("fp_type", "precision=Precision(fp_type=...)"),
+    ("tol", "precision=Precision(tol=...)"),
+])
+def test_a_moved_keyword_names_its_new_home(name, home):
+    assert name in MOVED_OPTIONS
+    with pytest.raises(TypeError, match=re.escape(f"solve() does not take {name}=: {name}= is given as {home}")):
+        refuse_moved_options("solve", [name, "rate"])
+    refuse_moved_options("solve", ["rate", "stepper"])  # nothing moved: nothing raised
+
+
+def test_the_decorator_keeps_the_signature_and_refuses_moved_keywords():
+    def solve(x: float, *, save: SaveAt = SaveAt(), rate: float = 1.0) -> tuple:
+        return x, save, rate
+
+    checked = takes_option_groups(solve)
+    assert inspect.signature(checked) == inspect.signature(solve) and checked.__name__ == "solve"
+    assert checked(2.0, rate=3.0)[::2] == (2.0, 3.0)
+    with pytest.raises(TypeError, match=r"dense= is given as save=SaveAt\(dense=\.\.\.\)"):
+        checked(2.0, dense=False)
