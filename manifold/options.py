@@ -46,11 +46,13 @@ class SaveAt:
         Keep the continuous output (for a Taylor method, the ``order + 1``
         coefficients of every step), needed to evaluate the solution at any
         ``t``.  ``False`` with ``t_eval`` keeps memory bounded by ``len(t_eval)``.
+        ``None`` (default) is the solver's own default (:meth:`keeps_dense`):
+        dense output for a single solve, none for an ensemble of them.
 
     Raises
     ------
     TypeError
-        If ``dense`` is not a bool, or ``t_eval`` holds complex, string or boolean values.
+        If ``dense`` is not a bool or ``None``, or ``t_eval`` holds complex, string or boolean values.
     ValueError
         If ``t_eval`` is not 1-d or holds ``nan`` or ``inf``.
 
@@ -61,10 +63,11 @@ class SaveAt:
     """
 
     t_eval: NDArray | None = None
-    dense: bool = True
+    dense: bool | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "dense", check_bool("dense", self.dense))
+        if self.dense is not None:
+            object.__setattr__(self, "dense", check_bool("dense", self.dense))
         if self.t_eval is not None:
             grid = real_array("t_eval", self.t_eval)
             if grid.ndim != 1:
@@ -72,6 +75,10 @@ class SaveAt:
             grid = grid.copy()  # the caller's array may change later; ours may not
             grid.setflags(write=False)
             object.__setattr__(self, "t_eval", grid)
+
+    def keeps_dense(self, default: bool) -> bool:
+        """Whether to keep the continuous output: :attr:`dense`, or the solver's ``default`` where it is ``None``."""
+        return default if self.dense is None else self.dense
 
     def grid(self, t_final: float) -> NDArray | None:
         """The ``t_eval`` times checked against ``t_final`` (within ``[0, t_final]``, in integration order), or

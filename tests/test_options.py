@@ -21,7 +21,13 @@ def test_save_at_keeps_its_own_read_only_copy_of_the_grid():
     assert save.t_eval is not None and list(save.t_eval) == [0.0, 0.5, 1.0]
     with pytest.raises(ValueError):
         save.t_eval[0] = 1.0
-    assert SaveAt().t_eval is None and SaveAt().dense is True and SaveAt().grid(1.0) is None
+    assert SaveAt().t_eval is None and SaveAt().grid(1.0) is None
+
+
+@pytest.mark.parametrize("default", [True, False])
+def test_save_at_leaves_dense_to_the_solver_unless_told(default):
+    assert SaveAt().keeps_dense(default) is default
+    assert SaveAt(dense=True).keeps_dense(default) is True and SaveAt(dense=False).keeps_dense(default) is False
 
 
 @settings(max_examples=50, deadline=None)
@@ -52,7 +58,7 @@ def test_save_at_refuses_a_grid_outside_the_interval():
         SaveAt(t_eval=[0.0, 3.0]).grid(2.0)
 
 
-@pytest.mark.parametrize("dense", [1, 0, "no", None])
+@pytest.mark.parametrize("dense", [1, 0, "no", np.array([True])])
 def test_save_at_dense_must_be_a_bool(dense):
     with pytest.raises(TypeError, match="dense must be True or False"):
         SaveAt(dense=dense)
