@@ -17,6 +17,7 @@ process, so the columns compare.
 """
 
 from __future__ import annotations
+from manifold import SaveAt
 
 import argparse
 
@@ -53,7 +54,7 @@ def energy_errors(chains: list[Chain], T: float, rate: float, seeds: int) -> tup
         rng = np.random.default_rng(0)
         for _ in range(seeds):
             h0, v0 = chart_start(chain, rng)
-            m = free_motion(chain, h0, v0, T, method="hinges", rate=rate, dense=False, throw=False)
+            m = free_motion(chain, h0, v0, T, method="hinges", rate=rate, save=SaveAt(dense=False), throw=False)
             errors.append(m.relative_energy_error if m.success else np.inf)
             steps.append(m.n_steps)
     return np.array(errors), float(np.mean(steps))

@@ -4,10 +4,10 @@ For ``method="hinges"`` at n = 4 (and ``--n``), CPU time of this process, the fa
 ``--rounds`` interleaved rounds (each a batch of calls, averaged):
 
 * the fixed cost of a call: ``free_motion`` to T = 1e-3 (one Taylor step), with and without dense output;
-* a T = 10 call (as a user calls it, dense output on; and with ``dense=False``) against heyoka's bare
+* a T = 10 call (as a user calls it, dense output on; and with ``save=SaveAt(dense=False)``) against heyoka's bare
   ``propagate_until`` on the same compiled integrator from the same state with the same parameters:
   the share of the call spent in heyoka;
-* the same at T = 200 (``dense=False``): the call's time over bare heyoka's;
+* the same at T = 200 (``SaveAt(dense=False)``): the call's time over bare heyoka's;
 * the bytes of dense output per Taylor step (T = 10).
 
 ``--baseline DIR`` measures another checkout of the library (``DIR`` on ``PYTHONPATH``) in a
@@ -69,16 +69,17 @@ def bare(chain, h0, w0, T: float):
 def measure(n: int, rounds: int) -> dict[str, float]:
     """Seconds per call of each case, the fastest of ``rounds`` batches."""
     from linkage.motion import free_motion
+    from manifold import SaveAt
 
     chain, h0, w0 = start(n)
 
     def call(T: float, **kw):
         return lambda: free_motion(chain, h0, w0, T, method="hinges", **kw)
 
-    cases = {"fixed, dense": (call(SHORT_T), 200), "fixed, no dense": (call(SHORT_T, dense=False), 200),
-             "T = 10, dense": (call(10.0), 20), "T = 10, no dense": (call(10.0, dense=False), 20),
+    cases = {"fixed, dense": (call(SHORT_T), 200), "fixed, no dense": (call(SHORT_T, save=SaveAt(dense=False)), 200),
+             "T = 10, dense": (call(10.0), 20), "T = 10, no dense": (call(10.0, save=SaveAt(dense=False)), 20),
              "T = 10, bare heyoka": (bare(chain, h0, w0, 10.0), 20),
-             "T = 200, no dense": (call(200.0, dense=False), 2), "T = 200, bare heyoka": (bare(chain, h0, w0, 200.0), 2)}
+             "T = 200, no dense": (call(200.0, save=SaveAt(dense=False)), 2), "T = 200, bare heyoka": (bare(chain, h0, w0, 200.0), 2)}
     best = {name: np.inf for name in cases}
     for run, _ in cases.values():
         run()  # compiles and caches outside the timing

@@ -32,6 +32,7 @@ from linkage import Chain  # noqa: E402
 from linkage.motion import free_motion  # noqa: E402
 from linkage.sampling import sample_configurations, sample_starts  # noqa: E402
 from manifold.sampling import BoxProposal, sample_volume  # noqa: E402
+from manifold import SaveAt
 
 FIGURES = Path(__file__).resolve().parent.parent / "docs" / "figures"
 LENGTHS = (2.05, 2.3, 2.8, 3.4, 3.9)
@@ -128,7 +129,7 @@ def ergodicity(T: float, runs: int, L: float = 2.6) -> list[dict]:
     for r in range(runs):
         t0 = time.perf_counter()
         ts = np.linspace(0, T, int(20 * T) + 1)
-        motion = free_motion(chain, hinges0[r], velocities0[r], T, method="charts", t_eval=ts)
+        motion = free_motion(chain, hinges0[r], velocities0[r], T, method="charts", save=SaveAt(t_eval=ts))
         seconds = time.perf_counter() - t0
         a = chart.get_parameters(chain.to_point(motion.hinges))
         i = np.clip(np.searchsorted(edges_phi, a[:, 0]) - 1, 0, 5)

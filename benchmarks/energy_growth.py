@@ -18,6 +18,7 @@ Run ``python -m benchmarks.energy_growth [--quick] [--long]``.  Prints:
 """
 
 from __future__ import annotations
+from manifold import Precision, SaveAt
 
 import argparse
 import time
@@ -45,16 +46,18 @@ def unequal_masses(ns: list[int], count: int, T: float = 20.0) -> None:
         for label, masses in (("equal", np.ones(n - 1)), ("1e-3..1e2", np.geomspace(1e-3, 1e2, n - 1)),
                               ("1e2..1e-3", np.geomspace(1e2, 1e-3, n - 1))):
             chain = Chain(n, n - 1.5, hinge_masses=masses)
-            rows = {"hinges": {"method": "hinges"}, "hinges, long double": {"method": "hinges", "fp_type": np.longdouble},
+            rows = {"hinges": {"method": "hinges"},
+                    "hinges, long double": {"method": "hinges", "precision": Precision(np.longdouble)},
                     "charts": {"method": "charts"},
-                    "charts, tol eps": {"method": "charts", "tol": EPS},
-                    "charts, tol eps, long double": {"method": "charts", "tol": EPS, "fp_type": np.longdouble}}
+                    "charts, tol eps": {"method": "charts", "precision": Precision(tol=EPS)},
+                    "charts, tol eps, long double": {"method": "charts", "precision": Precision(np.longdouble, EPS)}}
             for name, kw in rows.items():
                 errs, wall = [], 0.0
                 for h0, v0 in _starts(chain, count):
                     free_motion(chain, h0, v0, 0.01, **kw)  # compile outside the timing
                     t0 = time.perf_counter()
-                    errs.append(free_motion(chain, h0, v0, T, dense=False, throw=False, **kw).relative_energy_error)
+                    errs.append(free_motion(chain, h0, v0, T, save=SaveAt(dense=False), throw=False,
+                                            **kw).relative_energy_error)
                     wall += time.perf_counter() - t0
                 print(f"  n = {n}, masses {label:9s}  {name:28s} " + "  ".join(f"{e:.1e}" for e in errs)
                       + f"   ({wall:.2f} s)")
@@ -69,7 +72,7 @@ def long_runs(T: float, count: int, methods: tuple[str, ...] = ("charts", "hinge
         record, ambient = [], []
         for k, (h0, v0) in enumerate(_starts(chain, count)):
             t0 = time.perf_counter()
-            m = free_motion(chain, h0, v0, T, method=method, dense=False, t_eval=T * fractions)
+            m = free_motion(chain, h0, v0, T, method=method, save=SaveAt(dense=False, t_eval=T * fractions))
             E0 = float(chain.kinetic_energy(v0))
             times = np.array([float(t) for t in m.solution.energy_times])
             E = np.array([float(e) for e in m.solution.energies])

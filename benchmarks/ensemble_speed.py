@@ -7,7 +7,7 @@ absolute times are noise on a shared machine):
 1. wall time of 64 trajectories of the 4-rod chain over T = 20 (hinge
    method, float64, default tolerance, no dense output), best of 3:
 
-   * a Python loop of ``free_motion(..., method="hinges", dense=False)`` calls;
+   * a Python loop of ``free_motion(..., method="hinges", save=SaveAt(dense=False))`` calls;
    * ``free_motions`` serial with scalar integrators (``batch_size=1``);
    * ``free_motions`` serial with SIMD batches (``heyoka.recommended_simd_size()`` lanes);
    * ``free_motions`` on threads, scalar and SIMD;
@@ -36,6 +36,7 @@ import numpy as np
 from linkage import Chain
 from linkage.motion import free_motion, free_motions
 from manifold.ensemble import chunk_bounds, default_chunk_size
+from manifold import SaveAt
 
 from .starts import chart_start
 
@@ -66,9 +67,9 @@ def throughput(n: int, count: int, T: float) -> dict:
     chain = Chain(n, n - 1.4)
     H, V = starts(chain, count)
     # compile (or load from heyoka's disk cache) every integrator once, outside the timings
-    free_motion(chain, H[0], V[0], 1.0, method="hinges", dense=False)
+    free_motion(chain, H[0], V[0], 1.0, method="hinges", save=SaveAt(dense=False))
     free_motions(chain, H[:1], V[:1], 1.0)
-    loop_s, loop_share, loop = best_of(lambda: [free_motion(chain, h, v, T, method="hinges", dense=False)
+    loop_s, loop_share, loop = best_of(lambda: [free_motion(chain, h, v, T, method="hinges", save=SaveAt(dense=False))
                                                 for h, v in zip(H, V)])
     ends = np.array([chain.from_point(m.solution.end_state()[0]) for m in loop])
     rows = {"loop of free_motion": loop_s}

@@ -8,6 +8,7 @@ each and their ratio, for both methods.
 """
 
 from __future__ import annotations
+from manifold import SaveAt
 
 import argparse
 import statistics
@@ -34,7 +35,7 @@ def main() -> None:
         for method in ("charts", "hinges"):
             api, direct = [], []
             for k in range(len(H)):  # warm up: compiles (heyoka caches them on disk) and first calls
-                free_motion(chain, H[k], V[k], 10.0, method=method, t_eval=times)
+                free_motion(chain, H[k], V[k], 10.0, method=method, save=SaveAt(t_eval=times))
             for _ in range(args.repeats):
                 for k in range(len(H)):
                     body = {"lengths": 4, "L": 3.0, "hinges": as_pairs(H[k]), "velocity": as_pairs(V[k]),
@@ -44,7 +45,7 @@ def main() -> None:
                     api.append(time.perf_counter() - t0)
                     assert answer.status_code == 200, answer.text
                     t0 = time.perf_counter()
-                    free_motion(chain, H[k], V[k], 10.0, method=method, t_eval=times)
+                    free_motion(chain, H[k], V[k], 10.0, method=method, save=SaveAt(t_eval=times))
                     direct.append(time.perf_counter() - t0)
             print(f"{method:7s} POST /api/motion T = 10, n = 4, 201 samples: min {1e3 * min(api):6.1f} ms, "
                   f"median {1e3 * statistics.median(api):6.1f} ms | free_motion alone: min {1e3 * min(direct):6.1f} "

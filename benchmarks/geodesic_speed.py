@@ -28,7 +28,7 @@ import heyoka as hy
 import numpy as np
 
 from linkage import Chain
-from manifold import ScipyStepper, TaylorStepper, compiled, solve_chart_exp_ode
+from manifold import Precision, SaveAt, ScipyStepper, TaylorStepper, compiled, solve_chart_exp_ode
 
 from .study.experiments import generic_start
 
@@ -68,7 +68,7 @@ def long_run(n: int, T: float) -> dict:
     chain, p0, v0 = generic_start(n)
     solve_chart_exp_ode(chain.metric(), p0, v0, 0.01)  # compile outside the timing
     t0 = time.perf_counter()
-    sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, dense=False)
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, save=SaveAt(dense=False))
     wall = time.perf_counter() - t0
     return {"wall_per_time": wall / T, "steps_per_s": sol.n_steps / wall, "switches": sol.n_switches,
             "energy_error": sol.relative_energy_error, "steps": sol.n_steps}
@@ -82,15 +82,17 @@ def work_precision(n: int, T: float) -> dict:
     """Heyoka and DOP853 (time, final error) pairs, and the DOP853/heyoka ratio at equal error."""
     chain, p0, v0 = generic_start(n, seed=1)
     metric = chain.metric()
-    ref = _final_hinges(solve_chart_exp_ode(metric, p0, v0, T, fp_type=np.longdouble, tol=1e-19, dense=False))
+    ref = _final_hinges(solve_chart_exp_ode(metric, p0, v0, T, save=SaveAt(dense=False),
+                                            precision=Precision(fp_type=np.longdouble, tol=1e-19)))
 
     def measure(stepper, repeat: int = 3):
         """Least CPU time of ``repeat`` solves (a shared machine: wall time would measure the other users)."""
-        solve_chart_exp_ode(metric, p0, v0, min(T, 0.5), dense=False, stepper=stepper)  # warm-up (compile, caches)
+        solve_chart_exp_ode(metric, p0, v0, min(T, 0.5), save=SaveAt(dense=False),
+                            stepper=stepper)  # warm-up (compile, caches)
         best = np.inf
         for _ in range(repeat):
             t0 = time.process_time()
-            sol = solve_chart_exp_ode(metric, p0, v0, T, dense=False, stepper=stepper)
+            sol = solve_chart_exp_ode(metric, p0, v0, T, save=SaveAt(dense=False), stepper=stepper)
             best = min(best, time.process_time() - t0)
         return best, float(np.abs(_final_hinges(sol) - ref).max())
 

@@ -9,6 +9,7 @@ refused start, failed own check) and the worst energy error among successes.
 """
 
 from __future__ import annotations
+from manifold import SaveAt
 
 import argparse
 import collections
@@ -51,7 +52,7 @@ def main() -> None:
         worst, where = 0.0, ""
         for chain, h0, v0, T, label, kind in cases:
             try:
-                motion = free_motion(chain, h0, v0, T, method=method, throw=False, dense=False,
+                motion = free_motion(chain, h0, v0, T, method=method, throw=False, save=SaveAt(dense=False),
                                      **({"compact_mode": True} if method == "hinges" else {}))
             except ValueError as e:
                 ends[f"start refused ({str(e).split(':')[0][:60]})"] += 1

@@ -24,7 +24,7 @@ import numpy as np
 
 from linkage import Chain
 from linkage.motion import free_motion
-from manifold import compiled
+from manifold import SaveAt, compiled
 
 
 def chains(n: int, unit_only: bool) -> list[tuple[str, Chain]]:
@@ -67,7 +67,7 @@ def main() -> None:
         for _ in range(args.repeat):  # interleaved: load drifts hit every chain alike
             for i, (label, chain, h0, v0, size, best, m) in enumerate(runs):
                 t0 = time.process_time()
-                m = free_motion(chain, h0, v0, args.T, method="charts", dense=False)
+                m = free_motion(chain, h0, v0, args.T, method="charts", save=SaveAt(dense=False))
                 runs[i] = (label, chain, h0, v0, size, min(best, time.process_time() - t0), m)
         for label, chain, h0, v0, size, best, m in runs:
             print(f"{n:>2} {label:<14} {size:>13} {m.n_steps:>6} {m.n_switches:>8} {1e6 * best / m.n_steps:8.1f}")

@@ -37,6 +37,7 @@ from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
 from manifold.constrained import compiled_constrained
+from manifold import Precision, SaveAt
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper
 
@@ -124,11 +125,11 @@ def quad_precision(T: float = 100.0, repeats: dict | None = None) -> dict:
                 "charts, (a, c)": {"method": "charts", "stepper": SundmanStepper(ChainTimeFactor(chain))},
                 "charts in t": {"method": "charts", "stepper": TaylorStepper()}}
     for name, kw in variants.items():
-        free_motion(chain, h0, w0, 0.01, fp_type=hy.real128, **kw)
+        free_motion(chain, h0, w0, 0.01, precision=Precision(fp_type=hy.real128), **kw)
         walls, cpus = [], []
         for _ in range(repeats[name]):
             t0, c0 = time.perf_counter(), time.process_time()
-            m = free_motion(chain, h0, w0, T, fp_type=hy.real128, dense=False, **kw)
+            m = free_motion(chain, h0, w0, T, save=SaveAt(dense=False), precision=Precision(fp_type=hy.real128), **kw)
             walls.append(time.perf_counter() - t0)
             cpus.append(time.process_time() - c0)
         ends[name] = m.solution.end_state()[0]
@@ -152,8 +153,8 @@ def float64_accuracy(T_short: float = 20.0, T_long: float = 1e4) -> dict:
     ref = reference(chain, p0, v0, T_short, ts, fp_type=np.longdouble)
     err = errors(M.hinge_taylor(chain, p0, v0, T_short, ts, None), ref, chain)
     tl = np.concatenate([[0.0], np.geomspace(1.0, T_long, 60)])
-    m = free_motion(chain, chain.from_point(p0), chain.from_point(v0), T_long, method="hinges", t_eval=tl,
-                    dense=False)
+    m = free_motion(chain, chain.from_point(p0), chain.from_point(v0), T_long, method="hinges",
+                    save=SaveAt(t_eval=tl, dense=False))
     energy = np.maximum.accumulate(np.abs(m.energies / m.energies[0] - 1))
     sel = tl >= T_long / 1000
     slope = float(np.polyfit(np.log(tl[sel]), np.log(np.maximum(energy[sel], 1e-17)), 1)[0])
@@ -171,7 +172,7 @@ def compact_modes(ns: list[int], fp_types: tuple = (float, np.longdouble), T: fl
     Compiles go through a fresh heyoka disk cache (a temporary directory): "cold" is the first build (nothing
     cached, heyoka's memory cache and ours cleared; CPU and wall seconds), "cached" the same build once both
     memory caches are cleared again (what a new process pays once the code is on disk).  Then the CPU time of a
-    T = ``T`` run (``dense=False``, fastest of ``repeats``, the two modes interleaved) per Taylor step.
+    T = ``T`` run (``SaveAt(dense=False)``, fastest of ``repeats``, the two modes interleaved) per Taylor step.
     """
     out = {}
     old_path, old_enabled = hy.llvm_state.get_diskcache_path(), hy.llvm_state.get_diskcache_enabled()
@@ -180,7 +181,7 @@ def compact_modes(ns: list[int], fp_types: tuple = (float, np.longdouble), T: fl
         comp.clear()
         hy.llvm_state.clear_memcache()
         c0, t0 = time.process_time(), time.perf_counter()
-        free_motion(chain, h0, w0, 0.01, method="hinges", compact_mode=compact, fp_type=fp)
+        free_motion(chain, h0, w0, 0.01, method="hinges", compact_mode=compact, precision=Precision(fp_type=fp))
         return time.process_time() - c0, time.perf_counter() - t0
 
     try:
@@ -200,8 +201,8 @@ def compact_modes(ns: list[int], fp_types: tuple = (float, np.longdouble), T: fl
                     for _ in range(repeats):
                         for compact in (False, True):
                             c0 = time.process_time()
-                            m = free_motion(chain, h0, w0, T, method="hinges", compact_mode=compact, dense=False,
-                                            fp_type=fp)
+                            m = free_motion(chain, h0, w0, T, method="hinges", compact_mode=compact,
+                                            save=SaveAt(dense=False), precision=Precision(fp_type=fp))
                             row = out[(fp, n, compact)]
                             row["run"], row["steps"] = min(row["run"], time.process_time() - c0), m.n_steps
                     un, co = out[(fp, n, False)], out[(fp, n, True)]
@@ -228,7 +229,7 @@ def stabilisations(T: float = 1e4) -> dict:
                       ("none", {"stabilisation": "none"})]:
         free_motion(chain, h0, w0, 0.01, method="hinges", **kw)  # compile outside the timing
         t0 = time.perf_counter()
-        m = free_motion(chain, h0, w0, T, method="hinges", t_eval=ts, dense=False, throw=False, **kw)
+        m = free_motion(chain, h0, w0, T, method="hinges", save=SaveAt(t_eval=ts, dense=False), throw=False, **kw)
         wall = time.perf_counter() - t0
         reached = m.times <= float(m.solution.t_reached)
         out[label] = {"wall": wall, "rods": float(m.closure_residuals[reached].max()),

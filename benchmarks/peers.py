@@ -31,6 +31,7 @@ installed is reported as such and its column left empty.
 """
 
 from __future__ import annotations
+from manifold import Precision, SaveAt
 
 import argparse
 import platform
@@ -102,8 +103,8 @@ def problem(n: int, T: float, samples: int = 101) -> Problem:
 
 def reference(pb: Problem, fp_type: Any) -> np.ndarray:
     """The hinge method in ``fp_type`` (compact code: a short compile), hinges at ``pb.ts``."""
-    m = free_motion(pb.chain, pb.h0, pb.w0, pb.T, method="hinges", fp_type=fp_type, compact_mode=True,
-                    t_eval=pb.ts, dense=False)
+    m = free_motion(pb.chain, pb.h0, pb.w0, pb.T, method="hinges", save=SaveAt(t_eval=pb.ts, dense=False),
+                    precision=Precision(fp_type=fp_type), compact_mode=True)
     return pb.hinges(m.solution.points.astype(float))
 
 
@@ -112,10 +113,12 @@ def reference(pb: Problem, fp_type: Any) -> np.ndarray:
 
 def ours(pb: Problem, method: str, tol: float | None) -> Callable[[], tuple[np.ndarray, int]]:
     def run() -> tuple[np.ndarray, int]:
-        m = free_motion(pb.chain, pb.h0, pb.w0, pb.T, method=method, tol=tol, t_eval=pb.ts, dense=False)
+        m = free_motion(pb.chain, pb.h0, pb.w0, pb.T, method=method, save=SaveAt(t_eval=pb.ts, dense=False),
+                        precision=Precision(tol=tol))
         return m.hinges, m.n_steps
 
-    free_motion(pb.chain, pb.h0, pb.w0, min(pb.T, 0.1), method=method, tol=tol)  # compile outside the timing
+    free_motion(pb.chain, pb.h0, pb.w0, min(pb.T, 0.1), method=method,
+                precision=Precision(tol=tol))  # compile outside the timing
     return run
 
 

@@ -27,7 +27,7 @@ import time
 import heyoka as hy
 import numpy as np
 
-from manifold import TaylorStepper, compiled, solve_chart_exp_ode
+from manifold import Precision, SaveAt, TaylorStepper, compiled, solve_chart_exp_ode
 
 from .study.experiments import generic_start
 
@@ -66,12 +66,14 @@ def run_cpu(n: int, T: float, steppers: list, fp_type=float, repeat: int = 5) ->
     chain, p0, v0 = generic_start(n, seed=1)
     metric = chain.metric()
     for st in steppers:
-        solve_chart_exp_ode(metric, p0, v0, 0.01, stepper=st, fp_type=fp_type)  # compile, warm the caches
+        solve_chart_exp_ode(metric, p0, v0, 0.01, stepper=st,
+                            precision=Precision(fp_type=fp_type))  # compile, warm the caches
     best, sols = [np.inf] * len(steppers), [None] * len(steppers)
     for _ in range(repeat):
         for k, st in enumerate(steppers):
             t0 = time.process_time()
-            sols[k] = solve_chart_exp_ode(metric, p0, v0, T, stepper=st, fp_type=fp_type, dense=False)
+            sols[k] = solve_chart_exp_ode(metric, p0, v0, T, stepper=st, save=SaveAt(dense=False),
+                                          precision=Precision(fp_type=fp_type))
             best[k] = min(best[k], time.process_time() - t0)
     return list(zip(best, sols))
 
@@ -96,7 +98,8 @@ def _in_subprocess(n: int, T: float, timeout: float) -> list[dict] | None:
 
 def tolerance_sweep(n: int, T: float, compact: bool, opt_level: int) -> list[dict]:
     chain, p0, v0 = generic_start(n, seed=1)
-    ref = solve_chart_exp_ode(chain.metric(), p0, v0, T, fp_type=np.longdouble, tol=1e-19, dense=False)
+    ref = solve_chart_exp_ode(chain.metric(), p0, v0, T, save=SaveAt(dense=False),
+                              precision=Precision(fp_type=np.longdouble, tol=1e-19))
     p_ref = ref.end_state()[0].astype(float)
     runs = run_cpu(n, T, [TaylorStepper(tol, compact_mode=compact, opt_level=opt_level) for tol in TOLERANCES])
     return [{"tol": tol, "cpu": cpu, "steps": sol.n_steps, "switches": sol.n_switches,

@@ -22,6 +22,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
+from manifold.options import Precision, SaveAt
 from manifold.progress import ProgressArgument, TqdmProgress
 
 from .chain import Chain
@@ -68,14 +69,14 @@ def run(n: int, L: float, T: float, precision: str, out: str, samples: int = 200
     h0, v0 = pole_start(chain)
     fp = PRECISIONS[precision]
     t0 = time.perf_counter()
-    motion = free_motion(chain, h0, v0, T, method="charts", fp_type=fp, progress=progress)
+    motion = free_motion(chain, h0, v0, T, method="charts", precision=Precision(fp), progress=progress)
     t_chart = time.perf_counter() - t0
     sol = motion.solution
     ts = np.linspace(0, T, samples)
     hinges, _ = motion(ts)
     t0 = time.perf_counter()
     # the recommended chart-free reference (docs/methods.md): the hinge method, in the same precision
-    ref = free_motion(chain, h0, v0, T, method="hinges", fp_type=fp, t_eval=ts, dense=False)
+    ref = free_motion(chain, h0, v0, T, method="hinges", precision=Precision(fp), save=SaveAt(ts, dense=False))
     t_ref = time.perf_counter() - t0
     assert ref.solution.points is not None  # t_eval was given
     # compared in the working precision: rounded to complex128 first, a long-double or quad difference would vanish

@@ -290,7 +290,7 @@ def draw_energy_error(ax: Axes, motion: ChainMotion) -> Axes:
     """Draw the relative energy error ``|E(t) - E(0)| / E(0)`` of the solver's record against ``t`` (log scale).
 
     The record is the solver's own (every step, or every segment end with
-    ``dense=False``), the differences taken in the working precision
+    ``SaveAt(dense=False)``), the differences taken in the working precision
     (:meth:`manifold.GeodesicSolution.energy_deviations`); exact zeros are
     not drawn on the log scale.  Chart switches are thin grey vertical lines
     (``gid`` :data:`SWITCH_GID`).

@@ -19,18 +19,18 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold.constrained_batch import solve_constrained_ensemble
 from manifold.ensemble import EnsembleSolution, chunk_bounds, default_chunk_size, run_chunks
-from manifold.precision import resolve_fp_type
+from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, refuse_moved_options
 from manifold.progress import ProgressArgument
 from manifold.solution import SolveStatus
-from manifold.validation import check_positive_int, check_time_grid
+from manifold.validation import check_positive_int
 
 from .chain import Chain
 from .constraints import ChainSystem, start_states
 
 __all__ = ["EnsembleMotion", "free_motions"]
 
-#: Options of the hinge method that the SIMD batch integrators support (with ``fp_type`` float64, Baumgarte).
-BATCH_OPTIONS = {"tol", "rate", "compact_mode", "fp_type", "stabilisation"}
+#: Options of the hinge method that the SIMD batch integrators support (with ``precision`` in float64, Baumgarte).
+BATCH_OPTIONS = {"rate", "compact_mode", "stabilisation"}
 
 
 class EnsembleMotion:
@@ -82,7 +82,7 @@ class EnsembleMotion:
 
     def _grid(self, values: NDArray | None) -> NDArray:
         if values is None:
-            raise ValueError("no states were kept on a time grid: pass t_eval=... to free_motions")
+            raise ValueError("no states were kept on a time grid: pass save=SaveAt(t_eval=...) to free_motions")
         return values
 
     @property
@@ -128,7 +128,8 @@ def free_motions(
     t_final: float,
     *,
     method: str = "hinges",
-    t_eval: ArrayLike | None = None,
+    save: SaveAt = DEFAULT_SAVE,
+    precision: Precision = DEFAULT_PRECISION,
     backend: str = "serial",
     client: Any = None,
     progress: ProgressArgument = False,
@@ -161,9 +162,12 @@ def free_motions(
         Final time (finite, nonzero; negative integrates backward), the same for all.
     method
         ``"hinges"`` (default) or ``"charts"``.
-    t_eval
-        Times (1-d, within ``[0, t_final]``, in integration order) at which
-        to keep every trajectory's state; nothing else is kept (no dense output).
+    save
+        :class:`manifold.SaveAt` ``(t_eval)``: times (within ``[0, t_final]``, in integration order) at which
+        to keep every trajectory's state; nothing else is kept (no dense output: ``SaveAt(dense=True)`` is refused).
+    precision
+        :class:`manifold.Precision` ``(fp_type, tol)``, as for :func:`~linkage.motion.free_motion`; the SIMD
+        batches run in float64 only.
     backend
         ``"serial"`` (default), ``"threads"`` (every core) or ``"dask"``.
     client
@@ -181,10 +185,9 @@ def free_motions(
     tangent_tol, project_velocity
         The start checks of :func:`~linkage.motion.free_motion`.
     **kwargs
-        Options of the method (``tol``, ``rate``, ``compact_mode``,
-        ``fp_type``, ``stabilisation``, ``q_out``, ...), as for
-        :func:`~linkage.motion.free_motion`; ``dense`` and ``throw`` are not
-        accepted (an ensemble keeps no dense output and reports failures per trajectory).
+        Options of the method (``rate``, ``compact_mode``, ``stabilisation``, ``q_out``, ...), as for
+        :func:`~linkage.motion.free_motion`; ``throw`` is not accepted (an ensemble reports failures per
+        trajectory).
 
     Returns
     -------
@@ -195,20 +198,21 @@ def free_motions(
 
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    refused = {"dense", "throw"} & set(kwargs)
-    if refused:
-        raise TypeError(f"free_motions does not take {sorted(refused)}: an ensemble keeps no dense output "
-                        "(ask for states with t_eval) and reports a failed trajectory in its status")
+    refuse_moved_options("free_motions", kwargs)
+    if "throw" in kwargs:
+        raise TypeError("free_motions does not take throw=: an ensemble reports a failed trajectory in its status")
+    save, precision = check_group("save", save, SaveAt), check_group("precision", precision, Precision)
+    if save.keeps_dense(False):
+        raise TypeError("free_motions keeps no dense output: ask for states with save=SaveAt(t_eval=...)")
     _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, tangent_tol, project_velocity)
-    grid = None if t_eval is None else check_time_grid(t_eval, t_final)
-    batchable = (method == "hinges" and set(kwargs) <= BATCH_OPTIONS
-                 and resolve_fp_type(kwargs.get("fp_type", float)) is float
+    grid = save.grid(t_final)
+    batchable = (method == "hinges" and set(kwargs) <= BATCH_OPTIONS and precision.fp_type is float
                  and kwargs.get("stabilisation", "baumgarte") == "baumgarte")
     if batchable:
-        options = {k: v for k, v in kwargs.items() if k in ("tol", "rate", "compact_mode")}
+        options = {k: v for k, v in kwargs.items() if k in ("rate", "compact_mode")}
         solution = solve_constrained_ensemble(
-            ChainSystem(chain), X0, V0, t_final, t_eval=grid, batch_size=batch_size, chunk_size=chunk_size,
-            backend=backend, client=client, progress=progress, **options)
+            ChainSystem(chain), X0, V0, t_final, t_eval=grid, tol=precision.tol, batch_size=batch_size,
+            chunk_size=chunk_size, backend=backend, client=client, progress=progress, **options)
         return EnsembleMotion(chain, solution)
     if batch_size not in (None, 1):
         raise ValueError(f"batch_size={batch_size!r}: SIMD batches run the hinge method in float64 with Baumgarte "
@@ -216,7 +220,8 @@ def free_motions(
     size = (default_chunk_size(len(X0), 1, backend, client) if chunk_size is None
             else check_positive_int("chunk_size", chunk_size))
     bounds = chunk_bounds(len(X0), size)
-    chunks = [functools.partial(solve_motion_chunk, chain, X0[i:j], V0[i:j], t_final, grid, method, kwargs)
+    options = {"precision": precision, **kwargs}
+    chunks = [functools.partial(solve_motion_chunk, chain, X0[i:j], V0[i:j], t_final, grid, method, options)
               for i, j in bounds]
     return EnsembleMotion(chain, run_chunks(chunks, [j - i for i, j in bounds], backend=backend, client=client,
                                             progress=progress))
@@ -228,6 +233,7 @@ def solve_motion_chunk(chain: Chain, X0: NDArray, V0: NDArray, t_final: float, g
     from .motion import free_motion
 
     # progress=False: the ensemble reports per chunk; single solves inside it stay silent
-    solutions = [free_motion(chain, chain.from_point(x), chain.from_point(v), t_final, method=method, dense=False,
-                             throw=False, t_eval=grid, progress=False, **options).solution for x, v in zip(X0, V0)]
+    save = SaveAt(t_eval=grid, dense=False)
+    solutions = [free_motion(chain, chain.from_point(x), chain.from_point(v), t_final, method=method, save=save,
+                             throw=False, progress=False, **options).solution for x, v in zip(X0, V0)]
     return EnsembleSolution.from_solutions(solutions, t_final, grid)

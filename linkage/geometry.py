@@ -19,6 +19,7 @@ not a geodesic between two points), ``log`` and ``distance``.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -30,11 +31,11 @@ from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.carried import CarriedSolution, CarriedTerm, solve_carried
 from manifold.constrained import ConstrainedGeometry, solve_constrained
 from manifold.geodesic_solver import at_rest
-from manifold.precision import resolve_fp_type
 from manifold.jacobi import JacobiField
+from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
 from manifold.sundman import SundmanStepper
 from manifold.transport import ParallelTransport
-from manifold.validation import check_positive_int, check_real, check_time_grid
+from manifold.validation import check_positive_int, check_real
 
 from .chain import Chain
 from .diagonal_path import DiagonalPath
@@ -128,43 +129,47 @@ def _tangent_vectors(chain: Chain, x0: NDArray, values: ArrayLike, name: str,
     return rows, w.ndim == 1
 
 
-def _times(t_eval: ArrayLike | None, carried: CarriedSolution) -> NDArray:
-    if t_eval is None:  # every step of the integrator
+def _times(grid: NDArray | None, carried: CarriedSolution) -> NDArray:
+    if grid is None:  # every step of the integrator
         return np.array([float(t) for t in carried.solution.energy_times])
-    return np.asarray(t_eval, dtype=float)
+    return grid
 
 
 def _solve(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, term_of: Callable[[NDArray], CarriedTerm],
-           t_eval: ArrayLike | None, tangent_tol: float, method: str,
+           save: SaveAt, precision: Precision, tangent_tol: float, method: str,
            options: dict[str, Any]) -> tuple[CarriedSolution, NDArray]:
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    save, precision = check_group("save", save, SaveAt), check_group("precision", precision, Precision)
+    if not save.keeps_dense(True):
+        raise TypeError("the carried values are read from dense output: save=SaveAt(dense=False) is not taken")
     _, x0, v0, T = start_state(chain, hinges0, velocity0, check_real("T", T, nonzero=True), tangent_tol, False)
-    if t_eval is not None:
-        t_eval = check_time_grid(t_eval, T)
+    grid = save.grid(T)
     term: CarriedTerm = term_of(x0)
     if method == "hinges":
-        carried = solve_carried(ChainSystem(chain), x0, v0, T, [term], **options)
+        carried = solve_carried(ChainSystem(chain), x0, v0, T, [term], precision=precision, **options)
     else:
-        carried = _solve_in_charts(chain, x0, v0, T, term, options)
-    return carried, _times(t_eval, carried)
+        carried = _solve_in_charts(chain, x0, v0, T, term, precision, options)
+    return carried, _times(grid, carried)
 
 
-def _solve_in_charts(chain: Chain, x0: NDArray, v0: NDArray, T: float, term: CarriedTerm,
+def _solve_in_charts(chain: Chain, x0: NDArray, v0: NDArray, T: float, term: CarriedTerm, precision: Precision,
                      options: dict[str, Any]) -> CarriedSolution:
     """The geodesic in the atlas (Sundman's time, the state ``(a, J c)``) with ``term``'s ambient slots carried along,
     through every switch unchanged; the term's invariants checked over every step afterwards."""
-    for name in ("stepper", "dense", "t_eval", "form"):
+    for name in ("stepper", "form"):
         if name in options:
             raise TypeError(f"method='charts' does not take {name}= here (the stepper carries the term in the state "
                             "(a, J c), with dense output)")
     system = ChainSystem(chain)
-    if at_rest(x0, v0, T, resolve_fp_type(options.get("fp_type", float))):
+    if at_rest(x0, v0, T, precision.fp_type):
         # no chart motion to follow (Sundman's time would see no scale of time), but a Jacobi field still moves
-        return solve_carried(system, x0, v0, T, [term], **{k: v for k, v in options.items() if k != "q_out"})
-    stepper = SundmanStepper(ChainTimeFactor(chain), tol=options.pop("tol", None),
+        return solve_carried(system, x0, v0, T, [term], precision=precision,
+                             **{k: v for k, v in options.items() if k != "q_out"})
+    stepper = SundmanStepper(ChainTimeFactor(chain), tol=precision.tol,
                              velocity=ConstrainedVelocity(system, carry=(term,)))
-    solution = solve_chart_exp_ode(chain.metric(), x0, v0, T, stepper=stepper, project_velocity=True, **options)
+    solution = solve_chart_exp_ode(chain.metric(), x0, v0, T, stepper=stepper, project_velocity=True,
+                                   precision=dataclasses.replace(precision, tol=None), **options)
     carried = CarriedSolution(solution, (term,), ConstrainedGeometry(system, solution.fp_type))
     violation = carried.violation(stepper.relative_tolerance(solution.fp_type))
     if violation is not None:
@@ -174,8 +179,9 @@ def _solve_in_charts(chain: Chain, x0: NDArray, v0: NDArray, T: float, term: Car
     return carried
 
 
-def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, *, tangent_tol: float = 1e-9,
-        **options: Any) -> NDArray:
+@takes_option_groups
+def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, *,
+        precision: Precision = DEFAULT_PRECISION, tangent_tol: float = 1e-9, **options: Any) -> NDArray:
     """The exponential map: the hinges at time ``t`` of the geodesic from ``hinges0`` with velocity ``velocity0``.
 
     Parameters
@@ -186,27 +192,30 @@ def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, 
         Complex hinges (closing to 1e-9) and a tangent hinge velocity, shape ``(n-1,)``.
     t
         The time (nonzero; negative runs backward).  ``exp(chain, h, v, t) = exp(chain, h, t v, 1)``.
+    precision
+        :class:`manifold.Precision` ``(fp_type, tol)``: the working precision and heyoka's tolerance.
     tangent_tol
         The tangency tolerance of ``velocity0`` (:func:`linkage.constraints.start_state`).
     **options
-        Passed to :func:`manifold.constrained.solve_constrained` (``fp_type``, ``tol``, ``throw``, ...).
+        Passed to :func:`manifold.constrained.solve_constrained` (``rate``, ``throw``, ...).
 
     Returns
     -------
     numpy.ndarray
         Complex hinges, shape ``(n-1,)`` (rounded to complex128).
     """
-    for name in ("dense", "t_eval", "carry"):
+    for name in ("save", "carry"):
         if name in options:
             raise TypeError(f"exp does not take {name}= (it returns the end point; see parallel_transport for a path)")
     _, x0, v0, t = start_state(chain, hinges0, velocity0, check_real("t", t, nonzero=True), tangent_tol, False)
-    sol = solve_constrained(ChainSystem(chain), x0, v0, t, dense=False, **options)
+    sol = solve_constrained(ChainSystem(chain), x0, v0, t, precision=precision, save=SaveAt(dense=False), **options)
     return chain.from_point(sol.end_state()[0].astype(float))
 
 
-def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, vectors0: ArrayLike, T: float,
-                       t_eval: ArrayLike | None = None, *, method: str = "hinges", tangent_tol: float = 1e-9,
-                       **options: Any) -> TransportedVectors:
+@takes_option_groups
+def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, vectors0: ArrayLike, T: float, *,
+                       save: SaveAt = DEFAULT_SAVE, precision: Precision = DEFAULT_PRECISION, method: str = "hinges",
+                       tangent_tol: float = 1e-9, **options: Any) -> TransportedVectors:
     """Transport tangent vectors parallel along the geodesic from ``(hinges0, velocity0)`` for the time ``T``.
 
     ``W' = -K^{-1} G^T M^{-1} ((dG/dt) W)`` in hinge coordinates
@@ -225,8 +234,12 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
         tangent to ``tangent_tol`` (as ``velocity0``), else ``ValueError``.
     T
         The time to transport for (nonzero; negative runs backward).
-    t_eval
-        The times of :attr:`~CarriedMotion.times` (1-d, within ``[0, T]``, in order); default every step.
+    save
+        :class:`manifold.SaveAt` ``(t_eval)``: the times of :attr:`~CarriedMotion.times` (1-d, within
+        ``[0, T]``, in order); default every step.  The result is always dense (callable at any time):
+        ``dense=False`` is refused.
+    precision
+        :class:`manifold.Precision` ``(fp_type, tol)``: the working precision and heyoka's tolerance.
     method
         ``"hinges"`` (default): in hinge coordinates with the rod constraints
         (:func:`manifold.carried.solve_carried`; any generic lengths).  ``"charts"``: the geodesic in the
@@ -237,8 +250,8 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
     tangent_tol
         The tangency tolerance of ``velocity0`` and ``vectors0``.
     **options
-        Passed to :func:`manifold.carried.solve_carried` (``fp_type``, ``tol``, ``rate``, ``throw``, ``progress``),
-        or for ``"charts"`` to :func:`manifold.solve_chart_exp_ode` (``fp_type``, ``tol``, ``q_out``, ``throw``, ...).
+        Passed to :func:`manifold.carried.solve_carried` (``rate``, ``throw``, ``progress``, ...),
+        or for ``"charts"`` to :func:`manifold.solve_chart_exp_ode` (``q_out``, ``throw``, ...).
 
     Returns
     -------
@@ -253,13 +266,15 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
         single.append(one)
         return ParallelTransport(rows)
 
-    carried, times = _solve(chain, hinges0, velocity0, T, term, t_eval, tangent_tol, method, options)
+    carried, times = _solve(chain, hinges0, velocity0, T, term, save, precision, tangent_tol, method, options)
     return TransportedVectors(chain, carried, times, single[0])
 
 
+@takes_option_groups
 def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0: ArrayLike, derivative0: ArrayLike,
-                 T: float, t_eval: ArrayLike | None = None, *, method: str = "hinges", tangent_tol: float = 1e-9,
-                 checked: bool = True, **options: Any) -> JacobiFieldMotion:
+                 T: float, *, save: SaveAt = DEFAULT_SAVE, precision: Precision = DEFAULT_PRECISION,
+                 method: str = "hinges", tangent_tol: float = 1e-9, checked: bool = True,
+                 **options: Any) -> JacobiFieldMotion:
     """The Jacobi field along the geodesic from ``(hinges0, velocity0)`` with ``J(0) = field0``, ``D_t J(0) = derivative0``.
 
     The linearised geodesic flow (:class:`manifold.jacobi.JacobiField`): ``J``
@@ -268,7 +283,7 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
 
     Parameters
     ----------
-    chain, hinges0, velocity0, T, t_eval, method, tangent_tol, **options
+    chain, hinges0, velocity0, T, save, precision, method, tangent_tol, **options
         As in :func:`parallel_transport`.
     field0, derivative0
         Complex tangent vectors at ``hinges0``, one shape: ``(n-1,)`` or ``(k, n-1)`` for ``k`` fields at once.
@@ -293,7 +308,7 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
         single.append(one)
         return JacobiField(J, U, checked)
 
-    carried, times = _solve(chain, hinges0, velocity0, T, term, t_eval, tangent_tol, method, options)
+    carried, times = _solve(chain, hinges0, velocity0, T, term, save, precision, tangent_tol, method, options)
     return JacobiFieldMotion(chain, carried, times, single[0])
 
 
@@ -343,8 +358,10 @@ def tangent_basis(chain: Chain, hinges: ArrayLike) -> NDArray:
     return chain.from_point(np.linalg.solve(C, null))
 
 
+@takes_option_groups
 def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess: ArrayLike | None = None,
-        rtol: float = 1e-12, max_iterations: int = 30, **options: Any) -> LogResult:
+        rtol: float = 1e-12, max_iterations: int = 30, precision: Precision = DEFAULT_PRECISION,
+        **options: Any) -> LogResult:
     """The logarithm: a velocity ``v0`` at ``hinges0`` with ``exp(chain, hinges0, v0, 1) = hinges1``.
 
     Newton's method on the shooting map ``c -> exp(sum_i c_i e_i)`` in the
@@ -379,9 +396,11 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
         Convergence: ``|exp(v) - h1| <= rtol`` times the chain's mean rod length, ``> 0``.
     max_iterations
         Newton steps at most per guess, ``>= 1``.
+    precision
+        :class:`manifold.Precision` ``(tol=...)``: heyoka's tolerance of each shot.  The solve runs in
+        float64 (the targets are float64 configurations): another ``fp_type`` is refused.
     **options
-        Passed to :func:`manifold.carried.solve_carried` (``tol``, ``rate``).  The solve runs in
-        float64 (the targets are float64 configurations).
+        Passed to :func:`manifold.carried.solve_carried` (``rate``, ...).
 
     Returns
     -------
@@ -397,9 +416,13 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
     """
     rtol = check_real("rtol", rtol, positive=True)
     max_iterations = check_positive_int("max_iterations", max_iterations)
-    for name in ("fp_type", "dense", "t_eval", "carry"):
+    for name in ("save", "carry"):
         if name in options:
             raise TypeError(f"log does not take {name}= (it shoots in float64 with dense output)")
+    precision = check_group("precision", precision, Precision)
+    if precision.fp_type is not float:
+        raise ValueError(f"log shoots in float64 (the targets are float64 configurations), got "
+                         f"precision=Precision(fp_type={precision.fp_type!r})")
     h0 = chain.check_one_configuration(hinges0, "hinges0")
     x0 = chain.to_point(h0).astype(float)
     constraints = HingeConstraints(chain)
@@ -421,7 +444,7 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
         def shoot(c: NDArray) -> tuple[NDArray, NDArray]:
             """The residual ``exp(c) - goal`` and its derivative ``(N, n-2)``."""
             carried = solve_carried(system, x0, basis.T @ c, 1.0, [JacobiField(np.zeros_like(basis), basis)],
-                                    **options)
+                                    precision=precision, **options)
             x, _, values = carried(np.array([1.0]))
             return x[0].astype(float) - goal, values[0]["field"][0].astype(float).T
         return shoot
@@ -498,6 +521,7 @@ def _newton(shoot: Callable[[NDArray], tuple[NDArray, NDArray]], c: NDArray, tar
     return c, size, max_iterations
 
 
+@takes_option_groups
 def distance(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, **options: Any) -> float:
     """The geodesic distance ``sqrt(v0^H A v0)`` of :func:`log` ``(chain, hinges0, hinges1)`` (its caveats apply)."""
     return log(chain, hinges0, hinges1, **options).distance

@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold.ensemble import chunk_bounds, default_chunk_size, map_chunks
 from manifold.lyapunov import LyapunovResult, lyapunov_spectrum
+from manifold.options import DEFAULT_PRECISION, Precision, check_group, takes_option_groups
 from manifold.progress import ProgressArgument
 from manifold.validation import check_positive_int
 
@@ -23,6 +24,17 @@ from .constraints import ChainSystem, start_state, start_states
 __all__ = ["lyapunov_exponent", "lyapunov_exponents"]
 
 
+def _spectrum_options(precision: Precision, options: dict[str, Any]) -> dict[str, Any]:
+    """The keywords of :func:`manifold.lyapunov.lyapunov_spectrum`: ``precision``'s tolerance with the ``options``;
+    ``ValueError`` for a ``precision`` other than float64, the only one of its tangent integrators."""
+    precision = check_group("precision", precision, Precision)
+    if precision.fp_type is not float:
+        raise ValueError(f"Lyapunov exponents are computed in float64, got precision=Precision(fp_type="
+                         f"{precision.fp_type!r})")
+    return {"tol": precision.tol, **options}
+
+
+@takes_option_groups
 def lyapunov_exponent(
     chain: Chain,
     hinges0: ArrayLike,
@@ -32,6 +44,7 @@ def lyapunov_exponent(
     k: int = 1,
     interval: float = 1.0,
     deviations: str = "perpendicular",
+    precision: Precision = DEFAULT_PRECISION,
     tangent_tol: float = 1e-9,
     project_velocity: bool = False,
     **kwargs: Any,
@@ -62,10 +75,13 @@ def lyapunov_exponent(
         Time between renormalisations.
     deviations
         ``"perpendicular"`` (default) or ``"tangent"`` (the whole tangent space of the phase space).
+    precision
+        :class:`manifold.Precision` ``(tol=...)``: heyoka's tolerance; float64 only (another ``fp_type`` raises
+        ``ValueError``).
     tangent_tol, project_velocity
         The start checks of :func:`~linkage.motion.free_motion`.
     **kwargs
-        ``tol``, ``rate``, ``compact_mode``, ``seed``, ``throw`` of :func:`manifold.lyapunov.lyapunov_spectrum`.
+        ``rate``, ``compact_mode``, ``seed``, ``throw`` of :func:`manifold.lyapunov.lyapunov_spectrum`.
 
     Returns
     -------
@@ -73,11 +89,13 @@ def lyapunov_exponent(
         ``exponent`` (the maximal one), ``exponents``, the convergence
         ``history`` against ``times`` (``plot()`` draws it) and the trajectory's checks.
     """
+    options = _spectrum_options(precision, kwargs)
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
     return lyapunov_spectrum(ChainSystem(chain), x0, v0, t_final, k=k, interval=interval, deviations=deviations,
-                             **kwargs)
+                             **options)
 
 
+@takes_option_groups
 def lyapunov_exponents(
     chain: Chain,
     hinges0: ArrayLike,
@@ -88,6 +106,7 @@ def lyapunov_exponents(
     client: Any = None,
     progress: ProgressArgument = False,
     chunk_size: int | None = None,
+    precision: Precision = DEFAULT_PRECISION,
     tangent_tol: float = 1e-9,
     project_velocity: bool = False,
     **kwargs: Any,
@@ -97,13 +116,14 @@ def lyapunov_exponents(
 
     Each start is its own estimate; a trajectory that fails its checks is
     returned with its ``status`` (``throw=False``) instead of stopping the
-    others.  ``kwargs`` are those of :func:`lyapunov_exponent`.
+    others.  ``precision`` and ``kwargs`` are those of :func:`lyapunov_exponent`.
     """
+    options = _spectrum_options(precision, {"throw": False, **kwargs})
     _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, tangent_tol, project_velocity)
     size = (default_chunk_size(len(X0), 1, backend, client) if chunk_size is None
             else check_positive_int("chunk_size", chunk_size))
     bounds = chunk_bounds(len(X0), size)
-    chunks = [functools.partial(lyapunov_chunk, chain, X0[i:j], V0[i:j], t_final, {"throw": False, **kwargs})
+    chunks = [functools.partial(lyapunov_chunk, chain, X0[i:j], V0[i:j], t_final, options)
               for i, j in bounds]
     parts = map_chunks(chunks, [j - i for i, j in bounds], backend=backend, client=client, progress=progress)
     return [r for part in parts for r in part]

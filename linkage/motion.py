@@ -11,6 +11,7 @@ core or a Dask cluster; :mod:`linkage.ensemble`) and :func:`lyapunov_exponent`
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 from functools import cache, cached_property
 from pathlib import Path
@@ -23,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from manifold import GeodesicSolution, InducedMetric, solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.constrained import solve_constrained
+from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
 from manifold.progress import ProgressArgument
 from manifold.sundman import SundmanStepper
 
@@ -162,7 +164,7 @@ def _default_velocity(chain: Chain, kwargs: dict) -> ConstrainedVelocity | None:
     return ConstrainedVelocity(ChainSystem(chain))
 
 
-#: Options often written for the one each method calls ``tol`` (scipy's names).
+#: Options often written for the tolerance, ``precision=Precision(tol=...)`` (scipy's names).
 _TOLERANCE_ALIASES = ("rtol", "atol", "tolerance")
 
 
@@ -173,7 +175,8 @@ def _method_options(method: str) -> tuple[str, ...]:
     solver = solve_constrained if method == "hinges" else solve_chart_exp_ode
     parameters = inspect.signature(solver).parameters
     return tuple(sorted(name for name, p in parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY
-                        and name not in ("metric", "progress", "carry", "project_velocity", "tangent_tol")))
+                        and name not in ("metric", "progress", "carry", "project_velocity", "tangent_tol", "save",
+                                         "precision")))
 
 
 #: A chain whose dominant side falls short of the others' sum by less than this share of the perimeter is nearly
@@ -208,11 +211,12 @@ def _check_options(method: str, options: dict[str, Any]) -> None:
     taken = _method_options(method)
     for name in options:
         if name not in taken:
-            hint = "; the tolerance is tol=" if name in _TOLERANCE_ALIASES else ""
+            hint = "; the tolerance is precision=Precision(tol=...)" if name in _TOLERANCE_ALIASES else ""
             raise TypeError(f"free_motion(method={method!r}) does not take {name}={options[name]!r}{hint} "
                             f"(its options: {', '.join(taken)})")
 
 
+@takes_option_groups
 def free_motion(
     chain: Chain,
     hinges0: ArrayLike,
@@ -220,6 +224,8 @@ def free_motion(
     t_final: float,
     *,
     method: str = AUTO,
+    save: SaveAt = DEFAULT_SAVE,
+    precision: Precision = DEFAULT_PRECISION,
     tangent_tol: float = 1e-9,
     project_velocity: bool = False,
     progress: ProgressArgument = None,
@@ -268,6 +274,13 @@ def free_motion(
         ``"hinges"``, ``"charts"`` or ``"auto"`` (default): :func:`choose_method`, the hinges (the faster by
         measurement at every size and precision) except for a nearly stretched chain with an atlas, or where an
         option only the charts take is given.
+    save
+        :class:`manifold.SaveAt` ``(t_eval, dense)``: the times at which states are recorded, and whether to keep
+        the continuous output (default) for ``motion(t)`` at any time.
+    precision
+        :class:`manifold.Precision` ``(fp_type, tol)``: the working precision (float64 by default; long
+        double, real128, :class:`manifold.precision.MultiPrecision`) and heyoka's tolerance (``None``: the
+        method's default for ``fp_type``).
     tangent_tol
         Tolerance of the tangency check.
     project_velocity
@@ -278,26 +291,28 @@ def free_motion(
         callable receives each :class:`manifold.progress.ProgressUpdate`
         instead.  See :mod:`manifold.progress`.
     **kwargs
-        Passed on: to :func:`manifold.solve_chart_exp_ode` for ``"charts"``
-        (``stepper``, ``fp_type``, ``tol`` (of the default stepper), ``q_out``, ``form``, ``dense``,
-        ``t_eval``, ``throw``, ...), to :func:`manifold.constrained.solve_constrained`
-        for ``"hinges"`` (``fp_type``, ``tol``, ``stabilisation``, ``rate``,
-        ``projection_interval``, ``compact_mode``, ``dense``, ``t_eval``, ``throw``).
+        The method's own options, passed on: to :func:`manifold.solve_chart_exp_ode` for ``"charts"``
+        (``stepper``, ``q_out``, ``switching``, ``form``, ``max_switches``, ``throw``, ``budget``, ...; a
+        ``stepper`` given takes its own tolerance, not ``precision.tol``), to
+        :func:`manifold.constrained.solve_constrained` for ``"hinges"`` (``stabilisation``, ``rate``,
+        ``projection_interval``, ``compact_mode``, ``throw``, ``budget``).
     """
     if method not in (*METHODS, AUTO):
         raise ValueError(f"method must be one of {(*METHODS, AUTO)}, got {method!r}")
+    precision, save = check_group("precision", precision, Precision), check_group("save", save, SaveAt)
     if method == AUTO:
         method = choose_method(chain, kwargs)
     _check_options(method, kwargs)
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
     # velocity0 is tangent to tangent_tol (checked above): the solvers' own projection only removes rounding
     if method == "hinges":
-        solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, metric=chart_metric(chain),
-                                     progress=progress, **kwargs)
+        solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, precision=precision, save=save,
+                                     metric=chart_metric(chain), progress=progress, **kwargs)
     else:
         if kwargs.get("stepper") is None:  # Sundman's time: 13-44 % fewer steps (docs/methods.md)
-            kwargs["stepper"] = SundmanStepper(ChainTimeFactor(chain), tol=kwargs.pop("tol", None),
+            kwargs["stepper"] = SundmanStepper(ChainTimeFactor(chain), tol=precision.tol,
                                                velocity=_default_velocity(chain, kwargs))
-        solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, project_velocity=True, progress=progress,
-                                       **kwargs)
+            precision = dataclasses.replace(precision, tol=None)  # the stepper holds it
+        solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, precision=precision, save=save,
+                                       project_velocity=True, progress=progress, **kwargs)
     return ChainMotion(chain, solution)

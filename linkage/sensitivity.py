@@ -32,7 +32,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold.compiled import default_tolerance
 from manifold.constrained import speed_scale
-from manifold.precision import resolve_fp_type, unit_roundoff
+from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, takes_option_groups
+from manifold.precision import unit_roundoff
 
 from .chain import Chain
 from .constraints import ChainSystem, start_state
@@ -84,8 +85,10 @@ class Sensitivity:
                 f"error {self.estimated_error[-1]:.1e})")
 
 
-def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, t_eval: ArrayLike | None = None,
-                *, method: str = "hinges", threshold: float = DEFAULT_THRESHOLD, **options: Any) -> Sensitivity:
+@takes_option_groups
+def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, *, save: SaveAt = DEFAULT_SAVE,
+                precision: Precision = DEFAULT_PRECISION, method: str = "hinges", threshold: float = DEFAULT_THRESHOLD,
+                **options: Any) -> Sensitivity:
     """The amplification ``A(t)`` of the linearised flow from ``(hinges0, velocity0)`` over ``T``.
 
     It warns with :class:`SensitivityWarning` when the estimated relative error of the state at ``T``
@@ -93,12 +96,12 @@ def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float
 
     Parameters
     ----------
-    chain, hinges0, velocity0, T, t_eval, method
-        As in :func:`linkage.geometry.jacobi_field` (``t_eval`` default: every step).
+    chain, hinges0, velocity0, T, save, precision, method
+        As in :func:`linkage.geometry.jacobi_field` (``save=SaveAt(t_eval=...)``; default: every step).
     threshold
         Warn above this estimated relative error (``> 0``; default :data:`DEFAULT_THRESHOLD`).
     **options
-        Passed to :func:`linkage.geometry.jacobi_field` (``fp_type``, ``tol``, ``tangent_tol``, ``throw``, ...).
+        Passed to :func:`linkage.geometry.jacobi_field` (``tangent_tol``, ``throw``, ...).
         The fields' invariants are not checked (they lose digits with the growth they measure); the geodesic's
         energy and rods are.
 
@@ -121,20 +124,21 @@ def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float
     tau = 1.0 / (np.sqrt(2 * energy) * speed_scale(ChainSystem(chain))) if energy > 0 else abs(float(T))
     zeros = np.zeros_like(basis)
     fields = jacobi_field(chain, hinges0, velocity0, np.concatenate([basis, zeros]),
-                          np.concatenate([zeros, basis / tau]), T, t_eval, method=method, checked=False, **options)
+                          np.concatenate([zeros, basis / tau]), T, save=save, precision=precision, method=method,
+                          checked=False, **options)
     solution = fields.carried.solution
     R = np.linalg.cholesky(chain.ambient_metric).T  # |x|_K = |R x|
     J = chain.to_point(fields.field) @ R.T  # (times, 2k, N), Euclidean after R
     U = chain.to_point(fields.field_derivative) @ R.T * tau
     columns = np.concatenate([J, U], axis=2)  # Phi's columns, (times, 2k, 2N)
     amplification = np.linalg.svd(columns, compute_uv=False)[:, 0]
-    fp_type = resolve_fp_type(options.get("fp_type", float))
-    tol = options.get("tol") or default_tolerance(fp_type) or unit_roundoff(fp_type)
+    fp_type = precision.fp_type  # a Precision: jacobi_field checked it
+    tol = precision.tol or default_tolerance(fp_type) or unit_roundoff(fp_type)
     level = max(float(tol), float(solution.relative_energy_error))
     result = Sensitivity(fields.times, amplification, level, float(tau))
     if result.estimated_error[-1] > threshold:
         warnings.warn(f"the motion amplifies errors of its start {amplification[-1]:.3g}-fold by t = "
                       f"{fields.times[-1]:g} (rate {result.rate:.3g} per unit time): its estimated relative error "
-                      f"{result.estimated_error[-1]:.1e} exceeds {threshold:g}; a higher precision (fp_type) or a "
-                      f"shorter time keeps it meaningful", SensitivityWarning, stacklevel=2)
+                      f"{result.estimated_error[-1]:.1e} exceeds {threshold:g}; a higher precision "
+                      f"(precision=Precision(fp_type=...)) or a shorter time keeps it meaningful", SensitivityWarning, stacklevel=2)
     return result

@@ -17,6 +17,7 @@ from .compiled import ChartNumerics, CompiledFamily, compiled
 from .family import ChartFamily
 from .geodesic_solver import solve_chart_exp_ode
 from .metric import InducedMetric
+from .options import Precision, SaveAt
 from .sampling import BoxProposal, Proposal, VolumeSample, sample_velocities, sample_volume
 from .solution import CallableDense, ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import ScipyStepper, Stepper, TaylorStepper
@@ -24,7 +25,7 @@ from .symbolic import SymbolicChart
 
 __all__ = [
     "Atlas", "BoxProposal", "CallableDense", "Chart", "ChartDomainError", "ChartFamily", "ChartNumerics", "ChartSwitch",
-    "CompiledFamily", "GeodesicIntegrationError", "GeodesicSolution", "InducedMetric", "Proposal", "ScipyStepper",
-    "Segment", "SolveStatus", "SolverStats", "Stepper", "SymbolicChart", "TaylorStepper", "VolumeSample", "compiled",
-    "sample_velocities", "sample_volume", "solve_chart_exp_ode",
+    "CompiledFamily", "GeodesicIntegrationError", "GeodesicSolution", "InducedMetric", "Precision", "Proposal",
+    "SaveAt", "ScipyStepper", "Segment", "SolveStatus", "SolverStats", "Stepper", "SymbolicChart", "TaylorStepper",
+    "VolumeSample", "compiled", "sample_velocities", "sample_volume", "solve_chart_exp_ode",
 ]

@@ -109,5 +109,5 @@ def spent_message(account: _Account, t: float, t_final: float) -> str:
         need += f" and {account.dense_bytes * scale / 2**30:.3g} GiB of dense output ({account.per_step} bytes a step)"
     return (f"the budget of {account.budget.steps:.3g} steps and {account.budget.dense_bytes / 2**30:.3g} GiB of "
             f"dense output is spent at t = {t:.6g}: reaching t_final = {t_final:g} would take {need}; pass "
-            "budget=manifold.budget.Budget(...) to allow it, or dense=False (and no t_eval, whose grid is read from "
-            "a segment's dense output) to keep only the end state")
+            "budget=manifold.budget.Budget(...) to allow it, or save=SaveAt(dense=False) (and no t_eval, whose grid "
+            "is read from a segment's dense output) to keep only the end state")

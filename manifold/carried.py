@@ -29,6 +29,7 @@ import heyoka as hy
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .options import DEFAULT_SAVE, refuse_moved_options
 from .solution import GeodesicSolution, energy_bound
 
 if TYPE_CHECKING:
@@ -187,9 +188,9 @@ def solve_carried(system: ConstrainedSystem, x0: ArrayLike, v0: ArrayLike, t_fin
     terms
         The :class:`CarriedTerm` s (at least one).
     **options
-        Passed on to :func:`~manifold.constrained.solve_constrained` (``fp_type``, ``tol``, ``stabilisation``
+        Passed on to :func:`~manifold.constrained.solve_constrained` (``precision``, ``stabilisation``
         ``"baumgarte"`` or ``"none"``, ``rate``, ``compact_mode``, ``throw``, ``progress``); dense output is
-        always kept, since the carried values are read from it.
+        always kept (``save`` is not taken), since the carried values are read from it.
 
     Returns
     -------
@@ -202,8 +203,9 @@ def solve_carried(system: ConstrainedSystem, x0: ArrayLike, v0: ArrayLike, t_fin
     terms = tuple(terms)
     if not terms or not all(isinstance(t, CarriedTerm) for t in terms):
         raise TypeError(f"terms must be a non-empty sequence of CarriedTerm, got {terms!r}")
-    for name in ("dense", "t_eval", "carry"):
+    for name in ("save", "dense", "t_eval", "carry"):
         if name in options:
             raise TypeError(f"solve_carried does not take {name}= (the carried values are read from dense output)")
-    solution = solve_constrained(system, x0, v0, t_final, carry=terms, dense=True, **options)
+    refuse_moved_options("solve_carried", options)
+    solution = solve_constrained(system, x0, v0, t_final, carry=terms, save=DEFAULT_SAVE, **options)
     return CarriedSolution(solution, terms, ConstrainedGeometry(system, solution.fp_type))

@@ -57,10 +57,11 @@ from .carried import CarriedTerm, carried_violation, slot_ranges
 from .expression_linalg import ldl_solve
 from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible, settled
 from .metric import InducedMetric
-from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, resolve_fp_type, unit_roundoff
+from .options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
+from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
-from .steppers import MAX_TOLERANCE, taylor_advance, taylor_relative_tolerance
+from .steppers import taylor_advance, taylor_relative_tolerance
 from .validation import check_bool, check_real, check_time_grid, real_array
 
 __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "ConstrainedLayout", "ConstrainedSystem",
@@ -749,20 +750,19 @@ def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float
     return SolveStatus.SUCCESS, "reached t_final"
 
 
+@takes_option_groups
 def solve_constrained(
     system: ConstrainedSystem,
     x0: ArrayLike,
     v0: ArrayLike,
     t_final: float,
     *,
-    fp_type: Any = float,
-    tol: float | None = None,
+    precision: Precision = DEFAULT_PRECISION,
     stabilisation: str = "baumgarte",
     rate: float = 1.0,
     projection_interval: float = 10.0,
     compact_mode: bool | None = None,
-    dense: bool = True,
-    t_eval: ArrayLike | None = None,
+    save: SaveAt = DEFAULT_SAVE,
     metric: InducedMetric | None = None,
     throw: bool = True,
     progress: ProgressArgument = None,
@@ -783,12 +783,11 @@ def solve_constrained(
         Check tangency before calling; this projection only removes rounding.
     t_final
         Final time, finite and nonzero; negative integrates backward.
-    fp_type
-        ``float`` (default), ``numpy.longdouble``, ``heyoka.real128``,
-        :class:`~manifold.precision.MultiPrecision`, or a name
-        (``"float64"``, ``"longdouble"``, ``"real128"``, ``"mp<bits>"``).
-    tol
-        heyoka's tolerance, in ``(0, 1e-2]``; ``None`` is the machine epsilon of ``fp_type``.
+    precision
+        :class:`~manifold.options.Precision` ``(fp_type, tol)``: ``float`` (default), ``numpy.longdouble``,
+        ``heyoka.real128``, :class:`~manifold.precision.MultiPrecision`, or a name (``"float64"``,
+        ``"longdouble"``, ``"real128"``, ``"mp<bits>"``); heyoka's tolerance, in ``(0, 1e-2]``, ``None`` (default)
+        the machine epsilon of ``fp_type``.
     stabilisation
         ``"baumgarte"`` (default), ``"projection"`` or ``"none"`` (module docstring).
     rate
@@ -806,11 +805,10 @@ def solve_constrained(
         software arithmetic dominates the step (unrolled code at 150 bits
         exhausted memory), and with terms carried (``carry``; a Jacobi field
         at n = 4 took 52 s to compile unrolled, 1.1 s compact).
-    dense
-        Keep the Taylor coefficients of every step, for ``sol(t)`` at any time.
-    t_eval
-        Times (1-d, within ``[0, t_final]``, in integration order) recorded in
-        ``sol.points`` and ``sol.velocities``.
+    save
+        :class:`~manifold.options.SaveAt` ``(t_eval, dense)``: times (within ``[0, t_final]``, in integration
+        order) recorded in ``sol.points`` and ``sol.velocities``, and whether to keep the Taylor coefficients
+        of every step (default), for ``sol(t)`` at any time.
     metric
         The :class:`~manifold.metric.InducedMetric` of the same manifold, if it
         has an atlas: then ``sol.parameters(t)`` reads chart parameters on demand.
@@ -839,11 +837,10 @@ def solve_constrained(
         carried terms' invariants (``CARRIED_CHECK_FAILED``).
     """
     wall0 = time.perf_counter()
-    fp_type = resolve_fp_type(fp_type)
+    precision, save = check_group("precision", precision, Precision), check_group("save", save, SaveAt)
+    fp_type, tol, dense, t_eval = precision.fp_type, precision.tol, save.keeps_dense(True), save.t_eval
     report = as_callback(progress)
     t_final = check_real("t_final", t_final, nonzero=True)
-    if tol is not None:
-        tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
     if stabilisation not in STABILISATIONS:
         raise ValueError(f"stabilisation must be one of {STABILISATIONS}, got {stabilisation!r}")
     carry = tuple(carry)
@@ -857,8 +854,7 @@ def solve_constrained(
     if compact_mode is None:
         # with a Jacobi field carried, unrolled code took 52 s to compile at n = 4 (compact: 1.1 s)
         compact_mode = default_compact_mode(system, fp_type) or bool(carry)
-    compact_mode, dense, throw = (check_bool("compact_mode", compact_mode), check_bool("dense", dense),
-                                  check_bool("throw", throw))
+    compact_mode, throw = check_bool("compact_mode", compact_mode), check_bool("throw", throw)
     N = system.ambient_dim
     x0, v0 = real_array("x0", x0), real_array("v0", v0)
     for name, arr in (("x0", x0), ("v0", v0)):

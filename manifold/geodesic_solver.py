@@ -29,7 +29,8 @@ from .compiled import compiled
 from .events import WRAP
 from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible, settled
 from .metric import InducedMetric
-from .precision import as_fp, resolve_fp_type, unit_roundoff
+from .options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
+from .precision import as_fp, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, PointDense, Segment, SolverStats, SolveStatus
 from .steppers import Stepper, TaylorStepper
@@ -40,6 +41,8 @@ from .validation import check_bool, check_index, check_real, check_time_grid, re
 #: A start point whose chart parameters give back a point farther than this (times ``max(1, |p0|)``) is refused:
 #: the start is never silently moved.
 START_POINT_TOLERANCE = 1e-9
+
+
 class _NoGoodChart(Exception):
     """No chart has quality above ``q_out`` at a switch."""
 
@@ -56,6 +59,7 @@ class _NumericsOnDemand(dict):
         return self[i]
 
 
+@takes_option_groups
 def solve_chart_exp_ode(
     metric: InducedMetric,
     p0: ArrayLike,
@@ -63,15 +67,13 @@ def solve_chart_exp_ode(
     t_final: float,
     *,
     stepper: Stepper | None = None,
-    fp_type: Any = float,
-    tol: float | None = None,
+    precision: Precision = DEFAULT_PRECISION,
     q_out: float | None = None,
     switching: bool = True,
     form: str = "embedded",
     project_velocity: bool = False,
     tangent_tol: float = 1e-9,
-    dense: bool = True,
-    t_eval: ArrayLike | None = None,
+    save: SaveAt = DEFAULT_SAVE,
     max_switches: int = 1_000_000,
     chart: int | None = None,
     throw: bool = True,
@@ -92,16 +94,11 @@ def solve_chart_exp_ode(
     stepper
         How to advance inside a chart: :class:`~manifold.steppers.TaylorStepper`
         (default, heyoka) or :class:`~manifold.steppers.ScipyStepper` (comparisons).
-    fp_type
-        ``float`` (default), ``numpy.longdouble``, ``heyoka.real128`` or
-        :class:`manifold.precision.MultiPrecision` ``(bits)`` (heyoka's ``real``);
-        or by name: ``"float64"``, ``"longdouble"``, ``"real128"``, ``"mp<bits>"``.
-        The whole run -- integrator, transition maps, energies, ``sol(t)`` --
-        is in this type.
-    tol
-        Tolerance of the default Taylor stepper (``None``: 1e-14 in float64, the
-        machine epsilon of other types; :func:`manifold.compiled.default_tolerance`);
-        give it to the stepper instead when passing one.
+    precision
+        :class:`~manifold.options.Precision` ``(fp_type, tol)``: the floating type of the whole run --
+        integrator, transition maps, energies, ``sol(t)`` -- (default float64), and the tolerance of the default
+        Taylor stepper (``None``: 1e-14 in float64, the machine epsilon of other types;
+        :func:`manifold.compiled.default_tolerance`); give ``tol`` to the stepper instead when passing one.
     q_out
         Switch threshold on chart quality, in ``(0, 1)``; default ``atlas.switch_threshold``.
     switching
@@ -113,13 +110,12 @@ def solve_chart_exp_ode(
         If true, replace ``v0`` by its K-orthogonal projection on the tangent
         space; otherwise a ``v0`` off the tangent space by more than
         ``tangent_tol * max(1, |v0|)`` raises ``ValueError``.
-    dense
-        Keep the continuous output (``(order+1) * 2 dim`` numbers per Taylor
-        step), needed to evaluate the solution at any ``t``.
-    t_eval
-        Times (1-d, within ``[0, t_final]``, in integration order) at which
-        points and velocities are recorded in ``sol.points``/``sol.velocities``;
-        with ``dense=False`` memory then stays bounded by ``len(t_eval)``.
+    save
+        :class:`~manifold.options.SaveAt` ``(t_eval, dense)``: the times (within ``[0, t_final]``, in
+        integration order) at which points and velocities are recorded in ``sol.points``/``sol.velocities``,
+        and whether to keep the continuous output (``(order+1) * 2 dim`` numbers per Taylor step, default),
+        needed to evaluate the solution at any ``t``; ``SaveAt(t_eval, dense=False)`` keeps memory bounded by
+        ``len(t_eval)``.
     max_switches
         Safety limit on the number of chart switches.
     chart
@@ -147,10 +143,11 @@ def solve_chart_exp_ode(
     wall0 = time.perf_counter()
     if not isinstance(metric, InducedMetric):
         raise TypeError(f"metric must be a manifold.InducedMetric (an atlas with its metric), got {metric!r}")
-    fp_type = resolve_fp_type(fp_type)
+    precision, save = check_group("precision", precision, Precision), check_group("save", save, SaveAt)
+    fp_type, tol, dense, t_eval = precision.fp_type, precision.tol, save.keeps_dense(True), save.t_eval
     report = as_callback(progress)
     switching, project_velocity = check_bool("switching", switching), check_bool("project_velocity", project_velocity)
-    dense, throw = check_bool("dense", dense), check_bool("throw", throw)
+    throw = check_bool("throw", throw)
     if isinstance(max_switches, (bool, np.bool_)) or not isinstance(max_switches, numbers.Integral) or max_switches < 1:
         raise ValueError(f"max_switches must be a positive integer, got {max_switches!r}")
     if stepper is None:
@@ -159,7 +156,7 @@ def solve_chart_exp_ode(
         raise TypeError(f"stepper must be None or a manifold.steppers.Stepper instance (TaylorStepper(), "
                         f"SundmanStepper(...), ScipyStepper(...)), got {stepper!r}")
     elif tol is not None:
-        raise ValueError("give tol to the stepper (e.g. TaylorStepper(tol=...)), not beside it")
+        raise ValueError("give tol to the stepper (e.g. TaylorStepper(tol=...)), not beside it in precision=")
     with reporting(report):  # the start compiles the transfer and quality functions
         sol, i, a, c, q_event, t_end, grid, resting = _start(metric, p0, v0, t_final, fp_type, stepper, q_out,
                                                              switching, project_velocity, tangent_tol, t_eval, chart)

@@ -76,6 +76,9 @@ class SaveAt:
             grid.setflags(write=False)
             object.__setattr__(self, "t_eval", grid)
 
+    def __reduce__(self) -> tuple:
+        return SaveAt, (self.t_eval, self.dense)  # made anew, so that the grid is read-only again
+
     def keeps_dense(self, default: bool) -> bool:
         """Whether to keep the continuous output: :attr:`dense`, or the solver's ``default`` where it is ``None``."""
         return default if self.dense is None else self.dense

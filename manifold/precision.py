@@ -19,7 +19,7 @@ class MultiPrecision:
     """heyoka's arbitrary-precision ``real`` with ``bits`` bits of significand.
 
     Usable wherever the solvers take an ``fp_type``:
-    ``solve_chart_exp_ode(..., fp_type=MultiPrecision(256))``.  Its
+    ``solve_chart_exp_ode(..., precision=Precision(fp_type=MultiPrecision(256)))``.  Its
     ``numpy`` dtype is ``heyoka.real``; its unit roundoff is ``2**-bits``.
     """
 

@@ -19,7 +19,7 @@ from linkage import Chain
 from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
-from manifold import solve_chart_exp_ode
+from manifold import Precision, solve_chart_exp_ode
 from manifold.ambient_velocity import DEFAULT_RATE, ConstrainedVelocity
 from manifold.compiled import Transfer, compiled
 from manifold.constrained import damping_rate, speed_scale
@@ -81,8 +81,9 @@ def test_real128_agrees_with_the_embedded_form_to_its_precision():
     h0, v0 = unit_speed_start(chain, [0.4, -0.3], [0.7, 0.5])
     p0, w0 = chain.to_point(h0), chain.to_point(v0)
     factor = ChainTimeFactor(chain)
-    plain = solve_chart_exp_ode(chain.metric(), p0, w0, 1.5, fp_type=hy.real128, stepper=SundmanStepper(factor))
-    ambient = solve_chart_exp_ode(chain.metric(), p0, w0, 1.5, fp_type=hy.real128,
+    plain = solve_chart_exp_ode(chain.metric(), p0, w0, 1.5, precision=Precision(fp_type=hy.real128),
+                                stepper=SundmanStepper(factor))
+    ambient = solve_chart_exp_ode(chain.metric(), p0, w0, 1.5, precision=Precision(fp_type=hy.real128),
                                   stepper=SundmanStepper(factor, velocity=ConstrainedVelocity(ChainSystem(chain))))
     ts = np.linspace(0.0, 1.5, 7)
     assert float(np.max(np.abs(ambient(ts)[0] - plain(ts)[0]))) <= 1e-31

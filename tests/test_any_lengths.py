@@ -26,6 +26,7 @@ from linkage.ambient import integrate_ambient
 from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.motion import free_motion, free_motions
 from manifold.constrained import compiled_constrained
+from manifold import SaveAt
 
 EXAMPLE = (1.0, 2.0, 1.5, 2.5, 1.2)
 #: Three long sides (l_1, l_2 and L = 3: each pair exceeds P/2 = 5.1): two tori T^3.
@@ -65,7 +66,7 @@ def test_hinge_method_agrees_with_the_ambient_reference(lengths, L, kind, masses
     h0, v0 = start(chain, np.random.default_rng(int(10 * L) + len(lengths)))
     ts = np.linspace(0, T, 41)
     # compact mode: one cold compile per (n, mass sparsity) in seconds (CI starts cold)
-    hinges = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts, compact_mode=True)
+    hinges = free_motion(chain, h0, v0, T, method="hinges", save=SaveAt(t_eval=ts), compact_mode=True)
     ref = integrate_ambient(chain, h0, v0, T, t_eval=ts, rtol=1e-13, atol=1e-13)
     assert hinges.success and ref.success
     assert np.abs(hinges.hinges - ref.hinges).max() <= 1e-9
@@ -98,7 +99,7 @@ def test_a_torus_component_is_kept():
         h0, v0 = start(chain, np.random.default_rng(5), x, np.array([sign, 1, -1, 1]))
         e = chain.rods(h0)
         assert np.sign(np.imag(np.conj(e[0]) * e[1])) == sign  # sigma_2 is the orientation of (p_1, p_2)
-        m = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts, compact_mode=True)
+        m = free_motion(chain, h0, v0, T, method="hinges", save=SaveAt(t_eval=ts), compact_mode=True)
         assert m.relative_energy_error <= 1e-13 and m.closure_residuals.max() <= 1e-13
         e = chain.rods(m.hinges)
         cross = np.imag(np.conj(e[:, 0]) * e[:, 1])
@@ -107,8 +108,8 @@ def test_a_torus_component_is_kept():
     # the components are mirror images (conjugation), and so are their motions (up to the chaos: TORUS_HORIZON)
     h0, v0 = start(chain, np.random.default_rng(5), x, np.array([1, 1, -1, 1]))
     ts = np.linspace(0, TORUS_HORIZON, 41)
-    ref = free_motion(chain, h0, v0, TORUS_HORIZON, method="hinges", t_eval=ts, compact_mode=True)
-    mirror = free_motion(chain, np.conj(h0), np.conj(v0), TORUS_HORIZON, method="hinges", t_eval=ts,
+    ref = free_motion(chain, h0, v0, TORUS_HORIZON, method="hinges", save=SaveAt(t_eval=ts), compact_mode=True)
+    mirror = free_motion(chain, np.conj(h0), np.conj(v0), TORUS_HORIZON, method="hinges", save=SaveAt(t_eval=ts),
                          compact_mode=True)
     assert np.abs(mirror.hinges - np.conj(ref.hinges)).max() <= 1e-11
 
@@ -157,7 +158,7 @@ def test_property_hinge_method_matches_reference_for_any_generic_lengths(case):
     chain, x, flips, rng = case
     h0, v0 = start(chain, rng, x, flips)
     ts = np.linspace(0, 2.0, 9)
-    hinges = free_motion(chain, h0, v0, 2.0, method="hinges", t_eval=ts, compact_mode=True)
+    hinges = free_motion(chain, h0, v0, 2.0, method="hinges", save=SaveAt(t_eval=ts), compact_mode=True)
     ref = integrate_ambient(chain, h0, v0, 2.0, t_eval=ts, rtol=1e-13, atol=1e-13)
     scale = float(chain.lengths.sum() + chain.L)
     assert np.abs(hinges.hinges - ref.hinges).max() <= 1e-9 * scale
@@ -172,8 +173,8 @@ def test_a_scaled_chain_moves_as_the_chain(scale):
     chain, big = Chain(EXAMPLE, 3.0), Chain(scale * np.array(EXAMPLE), scale * 3.0)
     h0, v0 = start(chain, np.random.default_rng(8))
     ts = np.linspace(0, 10.0, 21)
-    m = free_motion(chain, h0, v0, 10.0, method="hinges", t_eval=ts, compact_mode=True)
-    ms = free_motion(big, scale * h0, scale * v0, 10.0, method="hinges", t_eval=ts, compact_mode=True)
+    m = free_motion(chain, h0, v0, 10.0, method="hinges", save=SaveAt(t_eval=ts), compact_mode=True)
+    ms = free_motion(big, scale * h0, scale * v0, 10.0, method="hinges", save=SaveAt(t_eval=ts), compact_mode=True)
     assert ms.success and ms.relative_energy_error <= 1e-13 and ms.closure_residuals.max() <= 1e-13
     # the same time scales: no stiffer Baumgarte damping, so no more steps (a tiny chain takes fewer, as
     # heyoka's tolerance acts as an absolute one on states below 1)

@@ -9,7 +9,7 @@ import pytest
 from linkage import Chain
 from linkage.motion import free_motion
 from linkage.sampling import sample_starts
-from manifold import GeodesicIntegrationError, SolveStatus
+from manifold import GeodesicIntegrationError, SaveAt, SolveStatus
 from manifold.budget import DEFAULT_BUDGET, Budget
 
 CHAIN = Chain(4, 2.6)
@@ -37,7 +37,7 @@ def test_a_memory_budget_limits_dense_output_and_the_end_state_needs_none(method
     with pytest.raises(GeodesicIntegrationError, match="GiB of dense output") as info:
         free_motion(CHAIN, H[0], V[0], 1000.0, method=method, budget=budget)
     assert info.value.solution.dense_nbytes <= 1.05 * 200_000
-    end = free_motion(CHAIN, H[0], V[0], 1000.0, method=method, budget=budget, dense=False)
+    end = free_motion(CHAIN, H[0], V[0], 1000.0, method=method, budget=budget, save=SaveAt(dense=False))
     assert end.success and end.n_steps > 2000
 
 

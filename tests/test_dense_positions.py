@@ -14,6 +14,7 @@ from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
 from linkage.sampling import sample_starts
 from manifold.constrained import ConstrainedGeometry, compiled_constrained
+from manifold import SaveAt
 from manifold.precision import unit_roundoff
 from manifold.solution import SecondOrderDense, TaylorDense
 from manifold.steppers import taylor_advance
@@ -62,7 +63,7 @@ def test_free_motion_keeps_half_the_bytes_and_the_same_motion():
     N = 6
     assert m.solution.dense_nbytes == m.n_steps * (N * (order + 2) + 1) * 8 + 8
     ts = np.linspace(0, 30, 301)
-    grid = free_motion(chain, H[0], V[0], 30.0, method="hinges", t_eval=ts, dense=False)
+    grid = free_motion(chain, H[0], V[0], 30.0, method="hinges", save=SaveAt(t_eval=ts, dense=False))
     p, v = m.solution(ts)
     assert np.abs(p - grid.solution.points).max() <= 1e-15 and np.abs(v - grid.solution.velocities).max() <= 1e-15
     # the velocity is the positions' derivative: against central differences of the dense positions

@@ -18,6 +18,8 @@ from linkage.motion import free_motion
 from manifold import (
     Atlas,
     GeodesicIntegrationError,
+    Precision,
+    SaveAt,
     ScipyStepper,
     SolveStatus,
     TaylorStepper,
@@ -125,7 +127,7 @@ def test_compact_dense_output_holds_only_the_taylor_coefficients(chain_run):
 def test_grid_output_without_dense_storage(chain_run):
     chain, a, c, dense = chain_run
     ts = np.linspace(0, 12, 25)
-    grid = solve_chart_exp_ode(chain.metric(), a, c, 12.0, dense=False, t_eval=ts, chart=0)
+    grid = solve_chart_exp_ode(chain.metric(), a, c, 12.0, save=SaveAt(dense=False, t_eval=ts), chart=0)
     assert grid.dense_nbytes == 0
     p, v = dense(ts)
     assert np.abs(grid.points - p).max() <= 1e-15 and np.abs(grid.velocities - v).max() <= 1e-15
@@ -137,11 +139,11 @@ def test_backward_grid_and_bad_grids():
     chain = Chain(4, 2.9)
     p0, v0 = _chain_start(chain, [1.2, 0.3], [1.0, 0.2])
     ts = np.linspace(0, -6, 13)
-    sol = solve_chart_exp_ode(chain.metric(), p0, v0, -6.0, t_eval=ts)
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, -6.0, save=SaveAt(t_eval=ts))
     assert np.abs(sol.points - sol(ts)[0]).max() <= 1e-15
     for bad in (np.linspace(0, 6, 5), ts[::-1], np.array([[0.0]])):
         with pytest.raises(ValueError, match="t_eval"):
-            solve_chart_exp_ode(chain.metric(), p0, v0, -6.0, t_eval=bad)
+            solve_chart_exp_ode(chain.metric(), p0, v0, -6.0, save=SaveAt(t_eval=bad))
 
 
 def test_failure_is_one_exception_or_one_status(chain_run):
@@ -210,7 +212,7 @@ def test_energy_error_is_measured_in_the_working_precision():
     """Rounding each energy to float64 before subtracting hid every deviation below 1e-16 (it reported 0)."""
     chain = Chain(4, 2.7)
     h0, v0 = unit_speed_start(chain, [0.3, 0.4], [1.0, 0.2])
-    sol = free_motion(chain, h0, v0, 3.0, fp_type=np.longdouble).solution
+    sol = free_motion(chain, h0, v0, 3.0, precision=Precision(fp_type=np.longdouble)).solution
     E = np.array(sol.energies, dtype=np.longdouble)
     expected = float(np.max(np.abs(E - E[0]) / E[0]))
     assert 0 < sol.relative_energy_error == pytest.approx(expected, rel=1e-6)

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from linkage import Chain
 from linkage.motion import free_motion, free_motions
-from manifold import SolveStatus
+from manifold import SaveAt, SolveStatus
 from manifold.solution import energy_bound
 
 from .conftest import base_lengths, unit_speed_start
@@ -50,7 +50,7 @@ def _starts(chain: Chain, count: int, seed: int = 0, pole: bool = True) -> tuple
 
 
 def _singles(chain, H, V, T, ts, **kw):
-    return [free_motion(chain, h, v, T, t_eval=ts, throw=False, **kw) for h, v in zip(H, V)]
+    return [free_motion(chain, h, v, T, save=SaveAt(t_eval=ts), throw=False, **kw) for h, v in zip(H, V)]
 
 
 def _max_gap(ens, singles) -> float:
@@ -75,7 +75,8 @@ def test_batches_threads_and_single_calls_agree():
     # AVX2, 8 on AVX-512), and the test must not assume one
     for backend, batch_size, chunk_size in [("serial", None, None), ("serial", 1, None), ("serial", 4, None),
                                             ("threads", 4, 4), ("threads", 3, 3), ("threads", 1, 2)]:
-        ens = free_motions(chain, H, V, T, t_eval=ts, backend=backend, batch_size=batch_size, chunk_size=chunk_size,
+        ens = free_motions(chain, H, V, T, save=SaveAt(t_eval=ts), backend=backend, batch_size=batch_size,
+                           chunk_size=chunk_size,
                            **FAST)
         assert ens.success.all(), ens.messages
         assert _max_gap(ens, singles) <= 1e-12
@@ -130,7 +131,7 @@ def test_ensembles_agree_with_single_calls_across_chains(n, data, count, backwar
     ts = np.linspace(0, T, 4)
     singles = _singles(chain, H, V, T, ts, method="hinges", **FAST)
     nudged = _singles(chain, H, V * (1 + 4 * 2.0**-52), T, ts, method="hinges", **FAST)
-    ens = free_motions(chain, H, V, T, t_eval=ts, backend="threads", **FAST)
+    ens = free_motions(chain, H, V, T, save=SaveAt(t_eval=ts), backend="threads", **FAST)
     for k, s in enumerate(singles):
         # the batch checks fewer states (the grid and the end), rounded differently: near the bound either may
         # fail.  Where the hinge equations lose digits the two scatter independently: at n = 3, L = n - 5.6e-4,
@@ -154,7 +155,7 @@ def test_a_failed_trajectory_does_not_sink_the_others():
     ts = np.linspace(0, 5.0, 6)
     singles = _singles(chain, H, V, 5.0, ts, method="hinges", **FAST)
     for batch_size in (None, 1):
-        ens = free_motions(chain, H, V, 5.0, t_eval=ts, batch_size=batch_size, **FAST)
+        ens = free_motions(chain, H, V, 5.0, save=SaveAt(t_eval=ts), batch_size=batch_size, **FAST)
         assert list(ens.success) == [True, True, False, True, False, True]
         assert ens.status == [s.solution.status for s in singles]  # judged by the same rules
         assert ens.messages[2] == singles[2].solution.message
@@ -180,7 +181,8 @@ def test_charts_method_keeps_each_failure_to_its_trajectory():
     T = 12.0
     ts = np.linspace(0, T, 25)
     singles = _singles(chain, H, V, T, ts, method="charts", max_switches=2)
-    ens = free_motions(chain, H, V, T, t_eval=ts, method="charts", max_switches=2, backend="threads", chunk_size=2)
+    ens = free_motions(chain, H, V, T, save=SaveAt(t_eval=ts), method="charts", max_switches=2, backend="threads",
+                       chunk_size=2)
     assert ens.status == [s.solution.status for s in singles]
     assert 0 < ens.n_failed < len(H)  # the case must have both kinds
     for k, s in enumerate(singles):
@@ -210,7 +212,7 @@ def test_memory_does_not_grow_with_the_steps():
     H, V = _starts(chain, 4, seed=2)
     sizes = []
     for T in (5.0, 50.0):
-        ens = free_motions(chain, H, V, T, t_eval=np.linspace(0, T, 11), **FAST)
+        ens = free_motions(chain, H, V, T, save=SaveAt(t_eval=np.linspace(0, T, 11)), **FAST)
         assert ens.n_steps.min() > 0
         sizes.append(len(pickle.dumps(ens.solution)))
     steps_ratio = free_motions(chain, H, V, 50.0, **FAST).n_steps.sum() / free_motions(chain, H, V, 5.0,
@@ -230,10 +232,11 @@ def test_dask_local_cluster_agrees_with_serial():
     H, V = _starts(chain, 10, seed=4)
     free_motion(chain, H[0], V[0], 1.0, method="charts")
     ts = np.linspace(0, 10.0, 5)
-    serial = free_motions(chain, H, V, 10.0, t_eval=ts, **FAST)
+    serial = free_motions(chain, H, V, 10.0, save=SaveAt(t_eval=ts), **FAST)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
         with distributed.Client(cluster) as client:
-            ens = free_motions(chain, H, V, 10.0, t_eval=ts, backend="dask", client=client, chunk_size=4, **FAST)
+            ens = free_motions(chain, H, V, 10.0, save=SaveAt(t_eval=ts), backend="dask", client=client, chunk_size=4,
+                               **FAST)
     assert ens.solution.backend == "dask"
     assert np.array_equal(ens.hinges, serial.hinges) and np.array_equal(ens.end_velocities, serial.end_velocities)
     assert ens.status == serial.status
@@ -275,11 +278,13 @@ def test_optional_extras_missing_give_a_clear_error(monkeypatch, module, kwargs,
     ({"client": object()}, ValueError, "client is only used with backend='dask'"),
     ({"batch_size": 0}, ValueError, "batch_size must be an integer >= 1, got 0"),
     ({"chunk_size": 2.5}, ValueError, "chunk_size must be an integer >= 1"),
-    ({"dense": True}, TypeError, "does not take \\['dense'\\]"),
+    ({"save": SaveAt(dense=True)}, TypeError, "free_motions keeps no dense output"),
+    ({"dense": False}, TypeError, "dense= is given as save=SaveAt"),
+    ({"throw": False}, TypeError, "free_motions does not take throw="),
     ({"method": "charts", "batch_size": 4}, ValueError, "SIMD batches run the hinge method"),
     ({"method": "rk4"}, ValueError, "method must be one of"),
     ({"progress": "yes"}, ValueError, "progress must be None, False, True, 'tqdm' or a callable"),
-    ({"t_eval": [0.0, 2.0]}, ValueError, "t_eval must be a 1-d array of times within \\[0, 1\\]"),
+    ({"save": SaveAt(t_eval=[0.0, 2.0])}, ValueError, "t_eval must be a 1-d array of times within \\[0, 1\\]"),
 ])
 def test_bad_arguments_are_refused_by_name(change, error, match):
     chain = Chain(4, 2.6)
@@ -314,7 +319,7 @@ def test_projected_starts_match_single_calls():
     W = V.copy()
     W[[1, 3]] += 0.3 * H[[1, 3]]  # a radial push: not tangent
     singles = _singles(chain, H, W, 4.0, np.linspace(0, 4, 3), method="hinges", project_velocity=True, **FAST)
-    ens = free_motions(chain, H, W, 4.0, t_eval=np.linspace(0, 4, 3), project_velocity=True, **FAST)
+    ens = free_motions(chain, H, W, 4.0, save=SaveAt(t_eval=np.linspace(0, 4, 3)), project_velocity=True, **FAST)
     assert _max_gap(ens, singles) <= 1e-12
     assert np.abs(ens.velocities[[0, 2, 4], 0] - V[[0, 2, 4]]).max() <= 1e-15  # tangent rows are left alone
     assert np.abs(ens.velocities[[1, 3], 0] - W[[1, 3]]).max() > 0.01

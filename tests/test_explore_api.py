@@ -6,6 +6,7 @@ answering; 50 concurrent T = 10 motions are answered by a real uvicorn server.
 """
 
 from __future__ import annotations
+from manifold import Precision, SaveAt
 
 import asyncio
 import json
@@ -66,7 +67,7 @@ def test_motion_is_free_motions(client: TestClient, method: str) -> None:
     assert answer.status_code == 200, answer.text
     got = answer.json()
     times = np.linspace(0.0, 10.0, 101)
-    ref = free_motion(CHAIN, h, v, 10.0, method=method, t_eval=times)
+    ref = free_motion(CHAIN, h, v, 10.0, method=method, save=SaveAt(t_eval=times))
     assert got["times"] == times.tolist()
     assert np.array_equal(complex_of(got["hinges"]), ref.hinges)
     assert np.array_equal(complex_of(got["velocities"]), ref.velocities)
@@ -82,7 +83,8 @@ def test_motion_is_free_motions(client: TestClient, method: str) -> None:
 def test_precision_names_reach_the_solver(client: TestClient) -> None:
     h, v = random_start(4)
     got = client.post("/api/motion", json=body(h, v, precision="longdouble", T=1.0, samples=5)).json()
-    ref = free_motion(CHAIN, h, v, 1.0, method="charts", fp_type=np.longdouble, t_eval=np.linspace(0, 1, 5))
+    ref = free_motion(CHAIN, h, v, 1.0, method="charts", save=SaveAt(t_eval=np.linspace(0, 1, 5)),
+                      precision=Precision(fp_type=np.longdouble))
     assert got["precision"] == "longdouble"
     assert np.array_equal(complex_of(got["hinges"]), ref.hinges)
 
@@ -287,7 +289,7 @@ def test_drag_keeps_the_chain_on_its_constraints(client: TestClient) -> None:
 
 def test_stream_continues_window_after_window(client: TestClient) -> None:
     h, v = random_start(10)
-    ref = free_motion(CHAIN, h, v, 4.0, method="charts", t_eval=np.linspace(0, 4, 21))
+    ref = free_motion(CHAIN, h, v, 4.0, method="charts", save=SaveAt(t_eval=np.linspace(0, 4, 21)))
     with client.websocket_connect("/api/stream") as ws:
         ws.send_json({"type": "launch", **{k: x for k, x in body(h, v).items() if k not in ("T", "samples")},
                       "window": 4.0, "rate": 5.0})
@@ -319,7 +321,7 @@ def test_fifty_concurrent_clients_of_a_real_server() -> None:
         answers = asyncio.run(run(url))
     assert [a.status_code for a in answers] == [200] * 50
     for k, a in enumerate(answers[:5]):
-        ref = free_motion(CHAIN, *starts[k], 10.0, method="charts", t_eval=np.linspace(0, 10, 101))
+        ref = free_motion(CHAIN, *starts[k], 10.0, method="charts", save=SaveAt(t_eval=np.linspace(0, 10, 101)))
         assert np.array_equal(complex_of(a.json()["hinges"]), ref.hinges)
 
 

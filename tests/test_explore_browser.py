@@ -11,6 +11,7 @@ environment variable ``CI`` set), where a missing browser is a failure.
 """
 
 from __future__ import annotations
+from manifold import SaveAt
 
 import os
 import shutil
@@ -117,7 +118,8 @@ def test_drag_and_flick_plays_free_motion(page: Any, figures: Path) -> None:
     launched = page.evaluate(f"{explorer}.lastLaunch()")
     h0, v0 = complex_of(launched["hinges"]), complex_of(launched["velocity"])
     assert np.max(CHAIN.closure_residual(h0)) < 1e-12
-    reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts", t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
+    reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts",
+                            save=SaveAt(t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1)))
     seen = play_and_compare(page, reference, until=WINDOW)
     page.evaluate(f"{explorer}.pause()")
     page.screenshot(path=str(figures / "explorer.png"))
@@ -199,7 +201,8 @@ def test_a_drag_in_the_cube_of_rod_angles_poses_the_chain_and_a_flick_launches(p
     launched = page.evaluate(f"{explorer}.lastLaunch()")
     h0, v0 = complex_of(launched["hinges"]), complex_of(launched["velocity"])
     assert np.max(CHAIN.closure_residual(h0)) <= 1e-12 and CHAIN.kinetic_energy(v0) > 0
-    reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts", t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
+    reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts",
+                            save=SaveAt(t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1)))
     seen_states = play_and_compare(page, reference, until=WINDOW)
     assert len({s["t"] for s in seen_states}) >= 5 and max(s["t"] for s in seen_states) > 0.8 * WINDOW
     page.evaluate(f"{explorer}.pause()")
@@ -221,7 +224,8 @@ def test_a_launch_over_the_pole_shows_its_switch(page: Any, figures: Path) -> No
     explorer = "window.linkageExplorer"
     page.evaluate(f"{explorer}.setSpeed(2)")
     page.evaluate(f"([h, v]) => {explorer}.launch({{hinges: h, velocity: v}})", [as_pairs(h0), as_pairs(v0)])
-    reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts", t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1))
+    reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts",
+                            save=SaveAt(t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1)))
     first = reference.solution.switches[0].time
     # paused by the page itself as soon as it shows a time past the first switch (a test polling from outside
     # could see it only later, on a loaded machine even past the window)

@@ -1,6 +1,7 @@
 """motion.to_html: one self-contained file that replays a motion (the browser side is in test_explore_browser)."""
 
 from __future__ import annotations
+from manifold import SaveAt
 
 import base64
 import json
@@ -46,7 +47,8 @@ def test_the_replay_needs_dense_output(tmp_path: Path) -> None:
     chain = Chain(4, 3.0)
     chart0 = chain.atlas().charts[0]
     a0, c0 = np.array([0.3, 0.2]), np.array([1.0, 0.2])
-    sparse = free_motion(chain, chart0.hinges(a0), chain.from_point(chart0.tangent_vector(a0, c0)), 1.0, method="charts", dense=False)
+    sparse = free_motion(chain, chart0.hinges(a0), chain.from_point(chart0.tangent_vector(a0, c0)), 1.0,
+                         method="charts", save=SaveAt(dense=False))
     with pytest.raises(ValueError, match="dense"):
         sparse.to_html(tmp_path / "sparse.html")
     with pytest.raises(ValueError, match="samples"):

@@ -10,7 +10,7 @@ from charts import SuspensionChart
 from linkage import Chain
 from linkage.ambient import integrate_ambient
 from linkage.motion import free_motion
-from manifold import ScipyStepper, TaylorStepper, solve_chart_exp_ode
+from manifold import Precision, SaveAt, ScipyStepper, TaylorStepper, solve_chart_exp_ode
 
 HALF_PI = np.pi / 2
 
@@ -29,7 +29,7 @@ def test_energy_is_conserved_across_a_hundred_switches(n, L, T):
     p0, v0 = start(chain, a0, rng.normal(size=n - 2))
     speed = np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))
     # q_out = 0.45 (still below the atlas's worst best quality 0.6) switches often
-    sol = solve_chart_exp_ode(chain.metric(), p0, v0 * (3.0 / speed), T, dense=False, q_out=0.45)
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0 * (3.0 / speed), T, save=SaveAt(dense=False), q_out=0.45)
     assert sol.n_switches >= 100
     assert sol.relative_energy_error <= 1e-12
     assert max(s.point_gap for s in sol.switches) <= 1e-14  # each transfer keeps the point (observed ~1e-15)
@@ -42,7 +42,7 @@ def test_energy_is_conserved_across_a_hundred_switches(n, L, T):
 def test_circle_chain_never_switches_and_conserves_energy():
     chain = Chain(3, 1.4)
     p0, v0 = start(chain, [0.3], [2.0])
-    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 300.0, dense=False)
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 300.0, save=SaveAt(dense=False))
     assert sol.n_switches == 0
     assert sol.relative_energy_error <= 1e-12
 
@@ -92,8 +92,8 @@ def test_reversibility(n, L):
     chain = Chain(n, L)
     rng = np.random.default_rng(10 + n)
     p0, v0 = start(chain, np.append(rng.uniform(-1.2, 1.2, n - 3), -1.0), np.append(1.0, rng.normal(size=n - 3)))
-    fwd = solve_chart_exp_ode(chain.metric(), p0, v0, 10.0, dense=False)
-    back = solve_chart_exp_ode(chain.metric(), *fwd.end_state(), -10.0, dense=False)
+    fwd = solve_chart_exp_ode(chain.metric(), p0, v0, 10.0, save=SaveAt(dense=False))
+    back = solve_chart_exp_ode(chain.metric(), *fwd.end_state(), -10.0, save=SaveAt(dense=False))
     p_back, v_back = back.end_state()
     assert fwd.n_switches >= 1
     assert np.abs(p_back - p0).max() <= 1e-10
@@ -118,13 +118,14 @@ def test_start_exactly_at_a_pole():
 def test_real128_energy_error():
     chain = Chain(4, 2.7)
     p0, v0 = start(chain, [1.2, 0.3], [1.0, 0.2])
-    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, fp_type=hy.real128)
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, precision=Precision(fp_type=hy.real128))
     assert sol.relative_energy_error <= 1e-28
 
 
 def test_long_double_runs_end_to_end():
     chain = Chain(4, 2.7)
-    sol = solve_chart_exp_ode(chain.metric(), [1.2, 0.3], [1.0, 0.2], 10.0, fp_type=np.longdouble, chart=0)
+    sol = solve_chart_exp_ode(chain.metric(), [1.2, 0.3], [1.0, 0.2], 10.0,
+                              precision=Precision(fp_type=np.longdouble), chart=0)
     assert sol.n_switches >= 1
     assert sol.relative_energy_error <= 1e-17
     p, _ = sol(5.0)
@@ -234,7 +235,7 @@ def test_backward_integration_switches_before_the_pole():
 
 def test_backward_run_wraps_the_circle_angle():
     chain = Chain(3, 1.7)
-    sol = solve_chart_exp_ode(chain.metric(), [0.0], [-2.0], -30.0, chart=0, dense=False)
+    sol = solve_chart_exp_ode(chain.metric(), [0.0], [-2.0], -30.0, chart=0, save=SaveAt(dense=False))
     i, a, c = sol.final_state
     assert -np.pi <= float(a[0]) <= np.pi
     assert sol.relative_energy_error < 1e-13

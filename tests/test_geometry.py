@@ -23,7 +23,7 @@ from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.diagonal_path import DifferentComponentsError
 from linkage.motion import free_motion
 from linkage.sampling import sample_starts
-from manifold import GeodesicIntegrationError
+from manifold import GeodesicIntegrationError, Precision, SaveAt
 from manifold.carried import solve_carried
 from manifold.jacobi import JacobiField
 from manifold.transport import ParallelTransport
@@ -64,7 +64,7 @@ def _transport_drift(chain: Chain, seed: int, T: float) -> tuple[float, geometry
     rng = np.random.default_rng(seed)
     H, V = sample_starts(chain, 1, 0.5 * float(np.mean(chain.hinge_masses)), rng)
     W0 = _random_tangent(chain, H[0], rng, 2)
-    pt = geometry.parallel_transport(chain, H[0], V[0], W0, T, t_eval=np.linspace(0, T, 41))
+    pt = geometry.parallel_transport(chain, H[0], V[0], W0, T, save=SaveAt(t_eval=np.linspace(0, T, 41)))
     gram = _gram(chain, np.concatenate([pt.vectors, pt.velocities[:, None, :]], axis=1))
     norms = np.sqrt(np.diagonal(gram[0]))
     return float((np.abs(gram - gram[0]) / np.outer(norms, norms)).max()), pt
@@ -141,7 +141,7 @@ def test_transport_agrees_with_an_independent_numpy_integration(where, masses):
         h0, v0 = H[0], V[0]
     w0 = _random_tangent(chain, h0, rng)
     ts = np.linspace(0, 10, 21)
-    pt = geometry.parallel_transport(chain, h0, v0, w0, 10.0, t_eval=ts)
+    pt = geometry.parallel_transport(chain, h0, v0, w0, 10.0, save=SaveAt(t_eval=ts))
     reference = _numpy_transport(chain, h0, v0, w0, ts)
     assert np.abs(pt.vectors - reference).max() <= 1e-10 * max(1.0, np.abs(w0).max())
 
@@ -154,7 +154,7 @@ def test_transport_runs_in_every_precision():
     H, V = sample_starts(chain, 1, 0.5, rng)
     w0 = _random_tangent(chain, H[0], rng)
     for fp_type, bound in (("longdouble", 1e-16), ("real128", 1e-28), ("mp150", 1e-40)):
-        pt = geometry.parallel_transport(chain, H[0], V[0], w0, 5.0, fp_type=fp_type)
+        pt = geometry.parallel_transport(chain, H[0], V[0], w0, 5.0, precision=Precision(fp_type=fp_type))
         _, v, values = pt.carried(np.array([0.0, 5.0]))
         W = values[0]["vectors"][:, 0]
         K = pt.carried.geometry.K
@@ -162,14 +162,14 @@ def test_transport_runs_in_every_precision():
         angle = [W[i] @ K @ v[i] for i in range(2)]
         assert float(abs(norm[1] - norm[0]) / norm[0]) <= bound
         assert float(abs(angle[1] - angle[0]) / norm[0]) <= 10 * bound
-    jf = geometry.jacobi_field(chain, H[0], V[0], 0 * w0, w0, 2.0, fp_type="mp150")
+    jf = geometry.jacobi_field(chain, H[0], V[0], 0 * w0, w0, 2.0, precision=Precision(fp_type="mp150"))
     assert jf.carried.solution.success and jf.carried.solution.relative_energy_error <= 1e-40
 
 
 def _geodesic_end(hc: HingeConstraints, chain: Chain, x0, v0, ts):
     from manifold.constrained import solve_constrained
 
-    sol = solve_constrained(ChainSystem(chain), x0, v0, ts[-1], t_eval=ts, dense=False)
+    sol = solve_constrained(ChainSystem(chain), x0, v0, ts[-1], save=SaveAt(t_eval=ts, dense=False))
     return sol.points.astype(float)
 
 
@@ -182,7 +182,7 @@ def test_jacobi_fields_agree_with_finite_differences_of_geodesics(n, L, masses):
     H, V = sample_starts(chain, 1, 0.5, rng)
     j0, w0 = _random_tangent(chain, H[0], rng), _random_tangent(chain, H[0], rng)
     ts = np.linspace(0, 5, 11)
-    jf = geometry.jacobi_field(chain, H[0], V[0], j0, w0, 5.0, t_eval=ts)
+    jf = geometry.jacobi_field(chain, H[0], V[0], j0, w0, 5.0, save=SaveAt(t_eval=ts))
     hc = HingeConstraints(chain)
     x0, v0 = chain.to_point(H[0]), chain.to_point(V[0])
     s = 1e-5
@@ -272,12 +272,13 @@ def _curvature_integral(chain: Chain, A, B, C, nodes: int = 12) -> float:
     x, wx = np.polynomial.legendre.leggauss(nodes)
     u, wu = (x + 1) / 2, wx / 2
     side = geometry.parallel_transport(chain, B, geometry.log(chain, B, C).velocity, np.zeros(chain.n - 1, complex),
-                                       1.0, t_eval=u)
+                                       1.0, save=SaveAt(t_eval=u))
     basis = geometry.tangent_basis(chain, A)
     metric, total = chain.metric(), 0.0
     for k in range(nodes):
         V = geometry.log(chain, A, side.hinges[k]).velocity
-        fan = geometry.jacobi_field(chain, A, V, np.zeros_like(basis), basis, 1.0, t_eval=np.append(u, 1.0))
+        fan = geometry.jacobi_field(chain, A, V, np.zeros_like(basis), basis, 1.0,
+                                    save=SaveAt(t_eval=np.append(u, 1.0)))
         c, *_ = np.linalg.lstsq(chain.to_point(fan.field[-1]).T, chain.to_point(side.velocities[k]), rcond=None)
         g = _gram(chain, np.stack([fan.velocities[:-1], np.einsum("i,tin->tn", c, fan.field[:-1])], axis=1))
         area = np.sqrt(g[:, 0, 0] * g[:, 1, 1] - g[:, 0, 1] ** 2)
@@ -299,7 +300,8 @@ def test_holonomy_of_a_geodesic_triangle_is_its_angle_excess_and_its_curvature_i
     excess = sum(_angle(chain, logs[(i, (i + 1) % 3)], logs[(i, (i + 2) % 3)]) for i in range(3)) - np.pi
     w0 = w = _random_tangent(chain, A, rng)
     for i in range(3):
-        side = geometry.parallel_transport(chain, vertices[i], logs[(i, (i + 1) % 3)], w, 1.0, t_eval=[0.0, 1.0])
+        side = geometry.parallel_transport(chain, vertices[i], logs[(i, (i + 1) % 3)], w, 1.0,
+                                           save=SaveAt(t_eval=[0.0, 1.0]))
         assert np.abs(side.hinges[-1] - vertices[(i + 1) % 3]).max() <= 1e-12
         w = side.vectors[-1]
     assert abs(excess) >= 1e-3, "the triangle must enclose curvature for the test to say something"
@@ -325,14 +327,14 @@ def test_bad_inputs_are_refused_by_name():
         geometry.parallel_transport(chain, H[0], V[0], V[0], 0.0)
     with pytest.raises(ValueError, match="t must be"):
         geometry.exp(chain, H[0], V[0], float("nan"))
-    with pytest.raises(TypeError, match="exp does not take dense="):
-        geometry.exp(chain, H[0], V[0], 1.0, dense=True)
+    with pytest.raises(TypeError, match="exp does not take save="):
+        geometry.exp(chain, H[0], V[0], 1.0, save=SaveAt(dense=True))
     with pytest.raises(ValueError, match="max_iterations"):
         geometry.log(chain, H[0], H[0], max_iterations=0)
     with pytest.raises(ValueError, match="velocity_guess must have shape"):
         geometry.log(chain, H[0], H[1] if len(H) > 1 else H[0] * 1, velocity_guess=[V[0], V[0]])
-    with pytest.raises(TypeError, match="log does not take fp_type="):
-        geometry.log(chain, H[0], H[0], fp_type="real128")
+    with pytest.raises(ValueError, match=r"log shoots in float64 .*, got precision=Precision\(fp_type="):
+        geometry.log(chain, H[0], H[0], precision=Precision(fp_type="real128"))
     with pytest.raises(TypeError, match="CarriedTerm"):
         solve_carried(ChainSystem(chain), chain.to_point(H[0]), chain.to_point(V[0]), 1.0, ["transport"])
     with pytest.raises(ValueError, match="projection"):
@@ -446,12 +448,13 @@ def test_transport_and_jacobi_fields_in_charts_agree_with_hinge_coordinates(wher
     v0 = 3 * _unit(chain, _random_tangent(chain, h0, rng))  # fast enough to meet a switch within T = 10
     W0 = _random_tangent(chain, h0, rng, 2)
     ts = np.linspace(0, 10, 21)
-    charts = geometry.parallel_transport(chain, h0, v0, W0, 10.0, ts, method="charts", q_out=0.55)
-    hinges = geometry.parallel_transport(chain, h0, v0, W0, 10.0, ts)
+    charts = geometry.parallel_transport(chain, h0, v0, W0, 10.0, save=SaveAt(t_eval=ts), method="charts", q_out=0.55)
+    hinges = geometry.parallel_transport(chain, h0, v0, W0, 10.0, save=SaveAt(t_eval=ts))
     assert charts.carried.solution.n_switches >= 1
     assert np.abs(charts.vectors - hinges.vectors).max() <= 1e-10
-    J = [geometry.jacobi_field(chain, h0, v0, 0 * W0[0], W0[0], 10.0, ts, method="charts", q_out=0.55),
-         geometry.jacobi_field(chain, h0, v0, 0 * W0[0], W0[0], 10.0, ts)]
+    J = [geometry.jacobi_field(chain, h0, v0, 0 * W0[0], W0[0], 10.0, save=SaveAt(t_eval=ts), method="charts",
+                               q_out=0.55),
+         geometry.jacobi_field(chain, h0, v0, 0 * W0[0], W0[0], 10.0, save=SaveAt(t_eval=ts))]
     assert np.abs(J[0].field - J[1].field).max() <= 1e-10 * max(1.0, np.abs(J[1].field).max())
     assert np.abs(J[0].field_derivative - J[1].field_derivative).max() <= 1e-10 * max(1.0, np.abs(J[1].field).max())
 
@@ -466,7 +469,7 @@ def test_a_jacobi_field_along_a_chain_at_rest_grows_linearly_in_both_methods(sca
     v0 = scale * _random_tangent(chain, h0, rng)
     j0, u0 = _random_tangent(chain, h0, rng), _random_tangent(chain, h0, rng)
     for method in ("charts", "hinges"):
-        jf = geometry.jacobi_field(chain, h0, v0, j0, u0, 2.0, [2.0], method=method)
+        jf = geometry.jacobi_field(chain, h0, v0, j0, u0, 2.0, save=SaveAt(t_eval=[2.0]), method=method)
         assert np.abs(jf.field[-1] - (j0 + 2.0 * u0)).max() <= 1e-12
 
 

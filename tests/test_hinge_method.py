@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from linkage import Chain
 from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.motion import free_motion
-from manifold import SolveStatus
+from manifold import Precision, SaveAt, SolveStatus
 from manifold.constrained import ConstrainedSystem, compiled_constrained, solve_constrained
 from manifold.expression_linalg import ldl_solve
 from manifold.precision import MultiPrecision, as_fp
@@ -136,8 +136,8 @@ def test_hinge_method_agrees_with_the_chart_method(n, pole, masses):
     h0, v0 = _start(chain, seed=n, pole=pole)
     T, ts = 10.0, np.linspace(0, 10.0, 41)
     # compact mode: one cold compile per (n, mass sparsity) in seconds, not tens of seconds (CI starts cold)
-    hinges = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts, compact_mode=True)
-    charts = free_motion(chain, h0, v0, T, method="charts", t_eval=ts)
+    hinges = free_motion(chain, h0, v0, T, method="hinges", save=SaveAt(t_eval=ts), compact_mode=True)
+    charts = free_motion(chain, h0, v0, T, method="charts", save=SaveAt(t_eval=ts))
     assert hinges.success and charts.success
     assert np.abs(hinges.hinges - charts.hinges).max() <= 1e-10
     assert np.abs(hinges.velocities - charts.velocities).max() <= 1e-10
@@ -148,7 +148,7 @@ def test_hinge_method_agrees_with_the_chart_method(n, pole, masses):
 def test_energy_and_closure_over_a_long_run():
     chain = Chain(4, 2.5)
     h0, v0 = _start(chain, seed=3)
-    m = free_motion(chain, h0, v0, 1000.0, method="hinges", dense=False, t_eval=np.linspace(0, 1000, 101))
+    m = free_motion(chain, h0, v0, 1000.0, method="hinges", save=SaveAt(dense=False, t_eval=np.linspace(0, 1000, 101)))
     assert m.relative_energy_error <= 1e-13
     assert m.closure_residuals.max() <= 1e-14
     assert np.abs(m.energies - m.energies[0]).max() <= 1e-13 * m.energies[0]
@@ -226,7 +226,7 @@ def test_a_light_hinge_passing_straight_keeps_the_energy():
     rng = np.random.default_rng(0)
     a = np.append(rng.uniform(-1.2, 1.2, 1), rng.uniform(-np.pi, np.pi))
     h0, v0 = unit_speed_start(chain, a, rng.normal(size=2))
-    motion = free_motion(chain, h0, v0, 20.0, method="hinges", dense=False)
+    motion = free_motion(chain, h0, v0, 20.0, method="hinges", save=SaveAt(dense=False))
     assert motion.relative_energy_error <= 2e-13
 
 
@@ -247,7 +247,8 @@ def test_rods_hold_with_masses_spread_over_five_decades(n, seed, densities, desc
     chain = Chain(n, n - 1.5, hinge_masses=masses[::-1] if descending else masses,
                   rod_densities=1e-2 if densities else 0.0)
     h0, v0 = _start(chain, seed)
-    motion = free_motion(chain, h0, v0, 20.0, method="hinges", compact_mode=True, t_eval=np.linspace(0, 20, 81),
+    motion = free_motion(chain, h0, v0, 20.0, method="hinges", compact_mode=True,
+                         save=SaveAt(t_eval=np.linspace(0, 20, 81)),
                          throw=False)
     assert motion.success or motion.solution.status is SolveStatus.ENERGY_CHECK_FAILED, motion.solution.message
     residuals = motion.closure_residuals
@@ -266,8 +267,8 @@ def test_near_the_top_the_velocity_error_of_three_rods_is_the_phase_lag_of_the_e
     h0, v0 = _start(chain, 0)
     T, d = 3.0, 1e-6
     ts = np.linspace(0, T, 301)
-    hinges = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts)
-    charts = free_motion(chain, h0, v0, T + d, method="charts", t_eval=[0.0, T - d, T, T + d])
+    hinges = free_motion(chain, h0, v0, T, method="hinges", save=SaveAt(t_eval=ts))
+    charts = free_motion(chain, h0, v0, T + d, method="charts", save=SaveAt(t_eval=[0.0, T - d, T, T + d]))
     v_h = chain.to_point(hinges.velocities[-1])
     v_c = np.array([chain.to_point(v) for v in charts.velocities[1:]])
     acceleration = (v_c[2] - v_c[0]) / (2 * d)
@@ -295,7 +296,7 @@ def test_stabilisations_agree_and_none_drifts_more():
     chain = Chain(4, 2.6)
     h0, v0 = _start(chain, seed=1)
     ts = np.linspace(0, 200, 11)
-    runs = {s: free_motion(chain, h0, v0, 200.0, method="hinges", stabilisation=s, t_eval=ts, throw=False)
+    runs = {s: free_motion(chain, h0, v0, 200.0, method="hinges", stabilisation=s, save=SaveAt(t_eval=ts), throw=False)
             for s in ("baumgarte", "projection", "none")}
     assert runs["baumgarte"].success and runs["projection"].success
     assert np.abs(runs["baumgarte"].hinges - runs["projection"].hinges).max() <= 1e-9
@@ -308,7 +309,7 @@ def test_higher_precisions_agree_with_float64_and_keep_energy(fp_type, T):
     chain = Chain(4, 2.7, hinge_masses=[1.0, 3.0, 0.7])
     h0, v0 = _start(chain, seed=5)
     ref = free_motion(chain, h0, v0, T, method="hinges")
-    hi = free_motion(chain, h0, v0, T, method="hinges", fp_type=fp_type)
+    hi = free_motion(chain, h0, v0, T, method="hinges", precision=Precision(fp_type=fp_type))
     p_ref, _ = ref.solution.end_state()
     p_hi, _ = hi.solution.end_state()
     assert np.abs(p_hi.astype(float) - p_ref).max() <= 1e-12
@@ -326,7 +327,7 @@ def test_dense_output_grid_and_chart_parameters_on_demand():
     chain = Chain(4, 2.4)
     h0, v0 = _start(chain, seed=2, pole=True)
     ts = np.linspace(0, 15, 31)
-    m = free_motion(chain, h0, v0, 15.0, method="hinges", t_eval=ts)
+    m = free_motion(chain, h0, v0, 15.0, method="hinges", save=SaveAt(t_eval=ts))
     p, v = m.solution(ts)
     assert np.abs(p - m.solution.points).max() <= 1e-15
     charts, a, c = m.solution.parameters(ts)
@@ -344,12 +345,14 @@ def test_bad_options_are_refused():
         free_motion(chain, h0, v0, 1.0, method="hinge")
     with pytest.raises(ValueError, match="stabilisation must be one of"):
         free_motion(chain, h0, v0, 1.0, method="hinges", stabilisation="Baumgarte")
-    for kw, name in [({"rate": 0.0}, "rate"), ({"rate": np.nan}, "rate"), ({"tol": 0.5}, "tol"),
+    for kw, name in [({"rate": 0.0}, "rate"), ({"rate": np.nan}, "rate"),
                      ({"projection_interval": -1.0}, "projection_interval")]:
         with pytest.raises(ValueError, match=name):
             free_motion(chain, h0, v0, 1.0, method="hinges", **kw)
+    with pytest.raises(ValueError, match="tol"):
+        free_motion(chain, h0, v0, 1.0, method="hinges", precision=Precision(tol=0.5))
     with pytest.raises(TypeError, match="dense"):
-        free_motion(chain, h0, v0, 1.0, method="hinges", dense=1)
+        free_motion(chain, h0, v0, 1.0, method="hinges", save=SaveAt(dense=1))
     with pytest.raises(TypeError):
         free_motion(chain, h0, v0, 1.0, method="hinges", q_out=0.3)  # a chart option
     system = ChainSystem(chain)
@@ -359,4 +362,4 @@ def test_bad_options_are_refused():
     with pytest.raises(ValueError, match=r"x0 must have shape \(6,\)"):
         solve_constrained(system, x0[:4], w0, 1.0)
     with pytest.raises(ValueError, match="t_eval"):
-        solve_constrained(system, x0, w0, 1.0, t_eval=[0.5, 2.0])
+        solve_constrained(system, x0, w0, 1.0, save=SaveAt(t_eval=[0.5, 2.0]))

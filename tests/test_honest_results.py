@@ -17,7 +17,7 @@ from linkage import Chain
 from linkage.constraints import HingeConstraints
 from linkage.motion import free_motion
 from linkage.sampling import sample_starts
-from manifold import GeodesicIntegrationError, SolveStatus, solve_chart_exp_ode
+from manifold import GeodesicIntegrationError, Precision, SaveAt, SolveStatus, solve_chart_exp_ode
 from manifold.geodesic_solver import START_POINT_TOLERANCE
 from manifold.solution import energy_bound
 
@@ -71,9 +71,10 @@ def test_the_default_tolerance_is_held_to_the_machine_epsilon():
     h0 = chain.from_point(chain.atlas().get_point(0, a))
     v0 = chain.from_point(chain.atlas().charts[0].tangent_vector(a, np.array([-1.870896396033325, 0.6822976621161289])))
     v0 = v0 / np.sqrt(2 * chain.kinetic_energy(v0))
-    motion = free_motion(chain, h0, v0, 2.0, throw=False, dense=False)  # energy checked at segment ends only
+    motion = free_motion(chain, h0, v0, 2.0, throw=False,
+                         save=SaveAt(dense=False))  # energy checked at segment ends only
     assert not motion.success or motion.relative_energy_error <= 1e-10
-    explicit = free_motion(chain, h0, v0, 2.0, throw=False, dense=False, tol=1e-14)
+    explicit = free_motion(chain, h0, v0, 2.0, throw=False, save=SaveAt(dense=False), precision=Precision(tol=1e-14))
     assert not explicit.success or explicit.relative_energy_error <= energy_bound(explicit.n_steps, 1e-14)
 
 
@@ -135,7 +136,7 @@ def test_a_chain_at_rest_stays_there(scale, method):
 
     chain = Chain(4, 2.6)
     H, V = sample_starts(chain, 1, 0.5, np.random.default_rng(0))
-    motion = free_motion(chain, H[0], scale * V[0], 2.0, method=method, t_eval=[0.0, 1.0, 2.0])
+    motion = free_motion(chain, H[0], scale * V[0], 2.0, method=method, save=SaveAt(t_eval=[0.0, 1.0, 2.0]))
     assert motion.success
     assert np.abs(motion.hinges - H[0]).max() <= 1e-15 and np.abs(motion(2.0)[0] - H[0]).max() <= 1e-15
     assert np.abs(motion.velocities).max() <= scale * np.abs(V[0]).max() * 1.01

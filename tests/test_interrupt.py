@@ -18,7 +18,7 @@ import pytest
 from linkage import Chain
 from linkage.motion import free_motion, lyapunov_exponent
 from linkage.sampling import sample_starts
-from manifold import SolveStatus
+from manifold import SaveAt, SolveStatus
 from manifold import interrupt
 from manifold.interrupt import SolveInterrupted
 
@@ -26,7 +26,8 @@ CHAIN = Chain(4, 2.6)
 H, V = sample_starts(CHAIN, 1, 0.5, np.random.default_rng(0))
 RUNS = {
     "hinges": lambda T, **kw: free_motion(CHAIN, H[0], V[0], T, method="hinges", **kw),
-    "hinges, no dense output": lambda T, **kw: free_motion(CHAIN, H[0], V[0], T, method="hinges", dense=False, **kw),
+    "hinges, no dense output": lambda T, **kw: free_motion(CHAIN, H[0], V[0], T, method="hinges",
+                                                           save=SaveAt(dense=False), **kw),
     "charts (Sundman's time)": lambda T, **kw: free_motion(CHAIN, H[0], V[0], T, method="charts", **kw),
     "lyapunov": lambda T, **kw: lyapunov_exponent(CHAIN, H[0], V[0], T, **kw),
 }

@@ -26,7 +26,7 @@ from charts.suspension_symbolic import SuspensionFamily
 from linkage import Chain
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
-from manifold import compiled
+from manifold import Precision, SaveAt, compiled
 from manifold.backends import NUMPY
 from manifold.sundman import SundmanStepper
 
@@ -433,9 +433,9 @@ def test_charts_and_hinges_agree_through_the_poles_of_every_chart(lengths, L, ma
     switches = 0
     for s in range(chain.n):
         h0, v0 = pole_start(chain, s, seed=s)
-        charts = free_motion(chain, h0, v0, T, method="charts", t_eval=ts)
-        hinges = free_motion(chain, h0, v0, T, method="hinges", t_eval=ts, compact_mode=True, fp_type=np.longdouble,
-                             tol=1e-17)
+        charts = free_motion(chain, h0, v0, T, method="charts", save=SaveAt(t_eval=ts))
+        hinges = free_motion(chain, h0, v0, T, method="hinges", save=SaveAt(t_eval=ts),
+                             precision=Precision(fp_type=np.longdouble, tol=1e-17), compact_mode=True)
         assert charts.success and hinges.success
         assert np.abs(charts.hinges - hinges.hinges).max() <= 1e-10
         assert np.abs(charts.velocities - hinges.velocities).max() <= velocity_tol
@@ -457,12 +457,13 @@ def test_near_an_end_the_charts_match_real128_hinges():
     chain = Chain(LINK_DOMINANT, 0.5 + 1e-3, hinge_masses=[1.0, 0.5, 2.0])
     ts = np.linspace(0, 10.0, 41)
     h0, v0 = pole_start(chain, 3, seed=3)
-    hinges = free_motion(chain, h0, v0, 10.0, method="hinges", t_eval=ts, compact_mode=True, fp_type="real128",
+    hinges = free_motion(chain, h0, v0, 10.0, method="hinges", save=SaveAt(t_eval=ts),
+                         precision=Precision(fp_type="real128"), compact_mode=True,
                          throw=False)  # its energy error 2.4e-28 just exceeds its (real128) bound: see the test's doc
     assert float(hinges.solution.t_reached) == 10.0
     embedded = SundmanStepper(ChainTimeFactor(chain))
     for stepper, bound in ((None, 3e-12), (embedded, 3e-13)):
-        charts = free_motion(chain, h0, v0, 10.0, method="charts", t_eval=ts, stepper=stepper)
+        charts = free_motion(chain, h0, v0, 10.0, method="charts", save=SaveAt(t_eval=ts), stepper=stepper)
         assert charts.n_switches >= 1
         assert np.abs(charts.hinges - hinges.hinges).max() <= bound
         assert np.abs(charts.velocities - hinges.velocities).max() <= 1e-10
@@ -474,7 +475,7 @@ def test_energy_is_kept_across_many_switches():
     energy and the point are kept across each switch, and switching does not chatter."""
     chain = Chain(EXAMPLE, 6.9, rod_densities=0.2)
     h0, v0 = pole_start(chain, 0, seed=3)
-    m = free_motion(chain, h0, 3 * v0, 400.0, method="charts", dense=False, q_out=0.5)
+    m = free_motion(chain, h0, 3 * v0, 400.0, method="charts", save=SaveAt(dense=False), q_out=0.5)
     assert m.n_switches >= 100
     assert m.relative_energy_error <= 1e-12
     assert max(s.point_gap for s in m.solution.switches) <= 1e-14 * chain.lengths.sum()

@@ -11,6 +11,7 @@ from linkage import Chain
 from linkage.constraints import ChainSystem
 from linkage.motion import free_motion, lyapunov_exponent, lyapunov_exponents
 from manifold.constrained import ConstrainedSystem, compiled_constrained
+from manifold import SaveAt
 from manifold.lyapunov import LyapunovError, lyapunov_spectrum
 
 from .conftest import unit_speed_start
@@ -97,7 +98,8 @@ def test_n4_exponent_matches_the_separation_of_two_trajectories():
     h1, v1 = unit_speed_start(chain, a, c)
     h2, v2 = unit_speed_start(chain, a + 1e-9 * np.array([1.0, -0.6]), c)
     ts = np.arange(0.0, 111.0)
-    m1, m2 = (free_motion(chain, h, v, 110.0, method="hinges", t_eval=ts, dense=False) for h, v in ((h1, v1), (h2, v2)))
+    m1, m2 = (free_motion(chain, h, v, 110.0, method="hinges", save=SaveAt(t_eval=ts, dense=False))
+              for h, v in ((h1, v1), (h2, v2)))
     K = chain.ambient_metric
     dx = chain.to_point(m2.hinges) - chain.to_point(m1.hinges)
     dv = chain.to_point(m2.velocities) - chain.to_point(m1.velocities)

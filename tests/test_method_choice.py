@@ -11,6 +11,8 @@ from linkage import Chain
 from linkage.motion import STRETCHED_GAP, choose_method, free_motion
 from linkage.sampling import sample_starts
 from manifold.steppers import TaylorStepper
+from manifold import SaveAt
+from manifold.budget import Budget
 
 
 @pytest.mark.parametrize("chain, options, expected", [
@@ -21,7 +23,7 @@ from manifold.steppers import TaylorStepper
     (Chain([1.0, 5.0, 1.2, 0.9], 2.5), {}, "hinges"),  # a link dominant, not stretched
     (Chain(4, 3.0), {"stepper": TaylorStepper()}, "charts"),  # only the chart solver takes a stepper
     (Chain(4, 4 - 1e-4), {"compact_mode": True}, "hinges"),  # only the hinge solver takes compact_mode
-    (Chain(4, 3.0), {"tol": 1e-12, "fp_type": "longdouble"}, "hinges"),  # both take these
+    (Chain(4, 3.0), {"throw": False, "budget": Budget()}, "hinges"),  # both take these
 ])
 def test_the_method_that_auto_stands_for(chain, options, expected):
     assert choose_method(chain, options) == expected
@@ -37,8 +39,8 @@ def test_the_default_runs_the_chosen_method_and_equals_it():
     for chain, kind in ((Chain(5, 4.2), "constrained"), (Chain(5, 5 - 1e-4), "sundman")):
         h, v = sample_starts(chain, 1, 1.0, np.random.default_rng(2))
         T = 0.5
-        default = free_motion(chain, h[0], v[0], T, t_eval=[T])
-        named = free_motion(chain, h[0], v[0], T, method=choose_method(chain, {}), t_eval=[T])
+        default = free_motion(chain, h[0], v[0], T, save=SaveAt(t_eval=[T]))
+        named = free_motion(chain, h[0], v[0], T, method=choose_method(chain, {}), save=SaveAt(t_eval=[T]))
         assert kind in default.solution.method
         assert np.array_equal(default.hinges, named.hinges)
 

@@ -9,9 +9,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from manifold import Precision, SaveAt
+from linkage import Chain, geometry
+from linkage.motion import free_motion, free_motions, lyapunov_exponent, lyapunov_exponents
+from linkage.sampling import sample_starts
+from linkage.sensitivity import sensitivity
+from manifold import Precision, SaveAt, solve_chart_exp_ode
+from manifold.carried import solve_carried
+from manifold.constrained import solve_constrained
 from manifold.options import MOVED_OPTIONS, check_group, refuse_moved_options, takes_option_groups
 from manifold.precision import MultiPrecision
+from manifold.steppers import TaylorStepper
+from manifold.transport import ParallelTransport
 
 
 def test_save_at_keeps_its_own_read_only_copy_of_the_grid():
@@ -22,6 +30,8 @@ def test_save_at_keeps_its_own_read_only_copy_of_the_grid():
     with pytest.raises(ValueError):
         save.t_eval[0] = 1.0
     assert SaveAt().t_eval is None and SaveAt().grid(1.0) is None
+    copy = pickle.loads(pickle.dumps(save))  # a SaveAt travels to Dask workers
+    assert copy.t_eval is not None and list(copy.t_eval) == [0.0, 0.5, 1.0] and not copy.t_eval.flags.writeable
 
 
 @pytest.mark.parametrize("default", [True, False])
@@ -114,3 +124,33 @@ def test_the_decorator_keeps_the_signature_and_refuses_moved_keywords():
     assert checked(2.0, rate=3.0)[::2] == (2.0, 3.0)
     with pytest.raises(TypeError, match=r"dense= is given as save=SaveAt\(dense=\.\.\.\)"):
         checked(2.0, dense=False)
+
+
+@pytest.mark.parametrize("solver", [solve_chart_exp_ode, solve_constrained, free_motion, free_motions, geometry.exp,
+                                    geometry.parallel_transport, geometry.jacobi_field, geometry.log,
+                                    geometry.distance, sensitivity, lyapunov_exponent, lyapunov_exponents])
+@pytest.mark.parametrize("name, home", [("t_eval", "save=SaveAt(t_eval=...)"),
+                                        ("fp_type", "precision=Precision(fp_type=...)")])
+def test_every_public_solver_names_the_new_home_of_a_moved_keyword(solver, name, home):
+    with pytest.raises(TypeError, match=re.escape(f"{solver.__name__}() does not take {name}=: {name}= is given "
+                                                  f"as {home}")):
+        solver(None, None, None, 1.0, **{name: None})
+
+
+def test_solve_carried_names_the_new_home_of_a_moved_keyword():
+    with pytest.raises(TypeError, match=re.escape("solve_carried() does not take tol=: tol= is given as "
+                                                  "precision=Precision(tol=...)")):
+        solve_carried(None, None, None, 1.0, [ParallelTransport(np.eye(2))], tol=1e-10)
+
+
+def test_the_tolerance_of_precision_reaches_the_chart_method_stepper():
+    chain = Chain(4, 2.7)
+    h0, v0 = sample_starts(chain, 1, 0.5, np.random.default_rng(1))
+    tight = free_motion(chain, h0[0], v0[0], 2.0, method="charts", save=SaveAt(dense=False))
+    loose = free_motion(chain, h0[0], v0[0], 2.0, method="charts", save=SaveAt(dense=False),
+                        precision=Precision(tol=1e-6))
+    assert loose.n_steps < tight.n_steps  # a looser tolerance takes longer steps
+    assert loose.relative_energy_error > tight.relative_energy_error
+    with pytest.raises(ValueError, match="give tol to the stepper"):
+        free_motion(chain, h0[0], v0[0], 2.0, method="charts", stepper=TaylorStepper(),
+                    precision=Precision(tol=1e-10))

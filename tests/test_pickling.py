@@ -6,6 +6,7 @@ and then round-trips all of them.
 """
 
 from __future__ import annotations
+from manifold import SaveAt
 
 import pickle
 
@@ -35,7 +36,7 @@ def test_objects_pickle_after_every_kind_of_use():
         (copy, chain_copy) = _round_trip(motion, chain)  # after a solve
         assert np.array_equal(copy(ts)[0], motion(ts)[0])
         assert np.array_equal(free_motion(chain_copy, H[0], V[0], 2.0, method=method)(ts)[0], motion(ts)[0])
-    ensemble = free_motions(chain, H, V, 2.0, t_eval=ts)
+    ensemble = free_motions(chain, H, V, 2.0, save=SaveAt(t_eval=ts))
     (copy,) = _round_trip(ensemble)
     assert np.array_equal(copy.hinges, ensemble.hinges)
     lyapunov = lyapunov_exponent(chain, H[0], V[0], 5.0)

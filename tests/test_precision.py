@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from linkage import Chain
-from manifold import solve_chart_exp_ode
+from manifold import Precision, solve_chart_exp_ode
 from manifold.precision import MultiPrecision, as_fp, unit_roundoff
 
 
@@ -43,7 +43,7 @@ def test_solver_rejects_an_unknown_floating_type():
     chain = Chain(3, 1.5)
     p0, v0 = start(chain, [0.3], [1.0])
     with pytest.raises(TypeError, match="fp_type must be"):
-        solve_chart_exp_ode(chain.metric(), p0, v0, 1.0, fp_type=np.float32)
+        solve_chart_exp_ode(chain.metric(), p0, v0, 1.0, precision=Precision(fp_type=np.float32))
 
 
 def test_multiprecision_circle_chain_agrees_with_real128():
@@ -51,8 +51,8 @@ def test_multiprecision_circle_chain_agrees_with_real128():
     chain = Chain(3, 2.2)
     p0, v0 = start(chain, [0.4], [1.3])
     fp = MultiPrecision(160)
-    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 3.0, fp_type=fp)
-    ref = solve_chart_exp_ode(chain.metric(), p0, v0, 3.0, fp_type=hy.real128)
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 3.0, precision=Precision(fp_type=fp))
+    ref = solve_chart_exp_ode(chain.metric(), p0, v0, 3.0, precision=Precision(fp_type=hy.real128))
     assert sol.relative_energy_error <= 1e3 * unit_roundoff(fp)
     p, _ = sol(2.0)
     assert {v.prec for v in p.ravel()} == {160}
@@ -66,8 +66,8 @@ def test_multiprecision_crosses_a_chart_switch_and_agrees_with_real128():
     chain = Chain(4, 3.2)
     p0, v0 = start(chain, [0.3, 0.4], [0.5, -0.7])
     fp = MultiPrecision(256)
-    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, fp_type=fp)
-    ref = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, fp_type=hy.real128)
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, precision=Precision(fp_type=fp))
+    ref = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, precision=Precision(fp_type=hy.real128))
     assert sol.n_switches >= 1 and ref.n_switches == sol.n_switches
     assert sol.relative_energy_error <= 1e3 * unit_roundoff(fp)
     assert max(s.point_gap for s in sol.switches) <= 1e3 * unit_roundoff(fp)

@@ -2,6 +2,7 @@
 it implies, against finite differences of whole solves and against two methods' disagreement."""
 
 from __future__ import annotations
+from manifold import SaveAt
 
 import warnings
 
@@ -28,7 +29,7 @@ def measured():
     h0, v0 = _start()
     with warnings.catch_warnings():
         warnings.simplefilter("error", SensitivityWarning)  # a tame motion: no warning at the default threshold
-        return h0, v0, sensitivity(CHAIN, h0, v0, T, t_eval=np.linspace(0.0, T, 9))
+        return h0, v0, sensitivity(CHAIN, h0, v0, T, save=SaveAt(t_eval=np.linspace(0.0, T, 9)))
 
 
 def test_the_amplification_starts_at_one_and_bounds_finite_differences_of_whole_solves(measured):
@@ -37,13 +38,13 @@ def test_the_amplification_starts_at_one_and_bounds_finite_differences_of_whole_
     # velocity perturbations along a kinetic-orthonormal basis, scaled by tau as the norm does: whole solves
     basis, eps = tangent_basis(CHAIN, h0), 1e-6
     R = np.linalg.cholesky(CHAIN.ambient_metric).T
-    base = free_motion(CHAIN, h0, v0, T, method="hinges", t_eval=[T])
+    base = free_motion(CHAIN, h0, v0, T, method="hinges", save=SaveAt(t_eval=[T]))
     # D_t J is the tangent part of dJ/dt: project the velocities' difference K-orthogonally at the end point
     Q = CHAIN.to_point(tangent_basis(CHAIN, base.hinges[-1]))
     K = CHAIN.ambient_metric
     columns = []
     for e in basis:
-        moved = free_motion(CHAIN, h0, v0 + eps * e / s.time_scale, T, method="hinges", t_eval=[T])
+        moved = free_motion(CHAIN, h0, v0 + eps * e / s.time_scale, T, method="hinges", save=SaveAt(t_eval=[T]))
         dx = R @ CHAIN.to_point(moved.hinges[-1] - base.hinges[-1])
         dv = CHAIN.to_point(moved.velocities[-1] - base.velocities[-1])
         dv = R @ (Q.T @ (Q @ K @ dv)) * s.time_scale
@@ -55,8 +56,8 @@ def test_the_amplification_starts_at_one_and_bounds_finite_differences_of_whole_
 
 def test_the_estimate_covers_the_disagreement_of_the_two_methods(measured):
     h0, v0, s = measured
-    charts = free_motion(CHAIN, h0, v0, T, t_eval=[T])
-    hinges = free_motion(CHAIN, h0, v0, T, method="hinges", t_eval=[T])
+    charts = free_motion(CHAIN, h0, v0, T, save=SaveAt(t_eval=[T]))
+    hinges = free_motion(CHAIN, h0, v0, T, method="hinges", save=SaveAt(t_eval=[T]))
     size = np.max(np.abs(h0))
     difference = np.max(np.abs(charts.hinges[-1] - hinges.hinges[-1])) / size
     assert difference <= 10 * s.estimated_error[-1]

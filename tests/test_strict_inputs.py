@@ -9,7 +9,7 @@ from charts import SuspensionAtlas
 from linkage import Chain, ConfigurationError
 from linkage.ambient import integrate_ambient
 from linkage.motion import free_motion
-from manifold import ScipyStepper, TaylorStepper, solve_chart_exp_ode
+from manifold import Precision, ScipyStepper, TaylorStepper, solve_chart_exp_ode
 
 from .conftest import unit_speed_start
 
@@ -25,7 +25,7 @@ def start():
 def test_tolerances_outside_their_range_are_refused(start, tol):
     chain, h0, v0 = start
     with pytest.raises(ValueError, match=r"tol must be a real number in \(0, 0.01\]"):
-        free_motion(chain, h0, v0, 1.0, tol=tol)
+        free_motion(chain, h0, v0, 1.0, precision=Precision(tol=tol))
     with pytest.raises(ValueError, match=r"tol must be a real number in \(0, 0.01\]"):
         TaylorStepper(tol)
     with pytest.raises(ValueError, match=r"rtol must be a real number"):
@@ -57,7 +57,7 @@ def test_solver_options_are_checked_before_the_run(start, kw, match):
         free_motion(chain, h0, v0, 1.0, **kw)
 
 
-@pytest.mark.parametrize("kw, error", [({"switching": "no"}, TypeError), ({"dense": 1}, TypeError),
+@pytest.mark.parametrize("kw, error", [({"switching": "no"}, TypeError), ({"save": [0.0, 1.0]}, TypeError),
                                        ({"chart": True}, TypeError), ({"chart": 4}, ValueError),
                                        ({"throw": None}, TypeError)])
 def test_flags_and_chart_indices_must_have_their_type(start, kw, error):
@@ -164,7 +164,8 @@ def test_options_found_unchecked_are_refused_by_name(start):
     with pytest.raises(ValueError, match=r"hinges0 must be one configuration.*free_motions"):
         free_motion(chain, np.stack([h0, h0]), np.stack([v0, v0]), 1.0, method="hinges")
     for method in ("hinges", "charts"):
-        with pytest.raises(TypeError, match=f"free_motion.method='{method}'. does not take rtol=1e-10; the tolerance is tol="):
+        with pytest.raises(TypeError, match=f"free_motion.method='{method}'. does not take rtol=1e-10; the tolerance is "
+                                            r"precision=Precision\(tol=\.\.\.\)"):
             free_motion(chain, h0, v0, 1.0, method=method, rtol=1e-10)
     chart = chain.atlas().charts[0]
     with pytest.raises(ValueError, match="c must hold the 2 coefficients"):

@@ -19,7 +19,7 @@ from linkage import Chain
 from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor, multiplier_determinant
-from manifold import solve_chart_exp_ode
+from manifold import Precision, SaveAt, solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.progress import ProgressUpdate
 from manifold.steppers import TaylorStepper
@@ -117,7 +117,8 @@ def test_sundman_time_gives_the_same_motion_switches_and_energy(n, L, masses, T)
     ts = np.linspace(0.0, T, 51)
     times = np.asarray(sundman.energy_times, dtype=float)
     assert np.all(np.diff(times) * np.sign(T) > 0) and times[-1] == T  # physical, in order, ending at T
-    grid = solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0), T, dense=False, t_eval=ts,
+    grid = solve_chart_exp_ode(chain.metric(), chain.to_point(h0), chain.to_point(v0), T,
+                               save=SaveAt(dense=False, t_eval=ts),
                                stepper=SundmanStepper(ChainTimeFactor(chain)))
     assert np.max(np.abs(grid.points - plain(ts)[0])) <= 1e-10
 
@@ -197,7 +198,8 @@ def test_with_masses_the_weighted_factor_saves_steps_and_a_unit_one_would_not():
         p0, w0 = chain.to_point(h0), chain.to_point(v0)
         for name, stepper in (("t", TaylorStepper()), ("weighted", SundmanStepper(ChainTimeFactor(chain))),
                               ("unit", SundmanStepper(UnitWeights(chain)))):
-            counts[name] += solve_chart_exp_ode(chain.metric(), p0, w0, 30.0, stepper=stepper, dense=False).n_steps
+            counts[name] += solve_chart_exp_ode(chain.metric(), p0, w0, 30.0, stepper=stepper,
+                                                save=SaveAt(dense=False)).n_steps
     assert counts["weighted"] < 0.75 * counts["t"]
     assert counts["weighted"] < 0.8 * counts["unit"]
 
@@ -205,7 +207,7 @@ def test_with_masses_the_weighted_factor_saves_steps_and_a_unit_one_would_not():
 def test_sundman_time_in_real128_agrees_with_t_to_its_precision():
     chain = Chain(4, 2.6)
     h0, v0 = unit_speed_start(chain, [0.4, -0.3], [0.7, 0.5])
-    plain, sundman = _pair(chain, h0, v0, 1.5, fp_type=hy.real128)
+    plain, sundman = _pair(chain, h0, v0, 1.5, precision=Precision(hy.real128))
     ts = np.linspace(0.0, 1.5, 7)
     assert float(np.max(np.abs(sundman(ts)[0] - plain(ts)[0]))) <= 1e-31  # measured 3.9e-34
     E = sundman.energies

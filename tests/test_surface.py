@@ -15,6 +15,7 @@ import manifold
 from linkage import Chain
 from linkage.motion import free_motion
 from manifold.precision import MultiPrecision, resolve_fp_type
+from manifold import Precision
 
 from .conftest import unit_speed_start
 
@@ -38,8 +39,8 @@ def test_unknown_precision_names_list_the_valid_ones(bad):
 def test_a_real128_run_by_name_matches_the_type():
     chain = Chain(4, 2.7)
     h0, v0 = unit_speed_start(chain, [0.3, 0.4], [1.0, 0.2])
-    by_name = free_motion(chain, h0, v0, 0.5, fp_type="real128")
-    by_type = free_motion(chain, h0, v0, 0.5, fp_type=hy.real128)
+    by_name = free_motion(chain, h0, v0, 0.5, precision=Precision(fp_type="real128"))
+    by_type = free_motion(chain, h0, v0, 0.5, precision=Precision(fp_type=hy.real128))
     assert by_name.solution.fp_type is hy.real128
     assert np.array_equal(by_name.solution.end_state()[0], by_type.solution.end_state()[0])
     assert by_name.relative_energy_error <= 1e-30

@@ -18,7 +18,7 @@ import heyoka as hy
 import numpy as np
 
 from charts import suspension_formula
-from manifold import backends
+from manifold import Precision, SaveAt, backends
 from linkage import Chain
 from manifold import ChartFamily, compiled, solve_chart_exp_ode
 from manifold.geodesic_system import SymbolicPieces
@@ -43,7 +43,7 @@ def generic_start(n: int, seed: int = 0, L: float | None = None) -> tuple[Chain,
 def reference(chain: Chain, p0, v0, T: float, ts: np.ndarray, fp_type=hy.real128) -> M.Run:
     """The atlas solution in extended precision, sampled at ``ts``."""
     t0 = time.perf_counter()
-    sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, fp_type=fp_type)
+    sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, precision=Precision(fp_type=fp_type))
     name = repr(fp_type) if isinstance(fp_type, MultiPrecision) else np.dtype(fp_type).name
     run = M.from_solution(f"reference ({name})", 0.0, chain, sol, time.perf_counter() - t0, ts)
     run.energy_exact = sol.energies[0]
@@ -162,7 +162,7 @@ def pole_crossing_start(chain: Chain, lead: float = 1.0, miss: float = 0.0) -> t
     j = atlas.get_chart_index(pole)
     v = atlas.charts[j].tangent_vector(atlas.get_parameters(j, pole), np.linspace(1.0, 0.4, chain.dim))
     v /= np.sqrt(2 * chain.metric().ambient_kinetic_energy(v))
-    back = solve_chart_exp_ode(chain.metric(), pole, v, -lead, dense=False)
+    back = solve_chart_exp_ode(chain.metric(), pole, v, -lead, save=SaveAt(dense=False))
     p0, v0 = back.end_state()
     return p0, v0, pole
 
@@ -268,9 +268,10 @@ def precision_cost(n: int = 4, T: float = 10.0, quick: bool = False) -> list[dic
     rows = []
     for label, fp, frac in PRECISIONS[:4] if quick else PRECISIONS:
         T_run = T * frac / (2 if quick and fp not in (float, np.longdouble) else 1)
-        solve_chart_exp_ode(chain.metric(), p0, v0, 0.01, fp_type=fp)  # compile outside the timing
+        solve_chart_exp_ode(chain.metric(), p0, v0, 0.01, precision=Precision(fp_type=fp))  # compile outside the timing
         t0 = time.perf_counter()
-        sol = solve_chart_exp_ode(chain.metric(), p0, v0, T_run, fp_type=fp, dense=False)
+        sol = solve_chart_exp_ode(chain.metric(), p0, v0, T_run, save=SaveAt(dense=False),
+                                  precision=Precision(fp_type=fp))
         wall = time.perf_counter() - t0
         rows.append({"precision": label, "T": T_run, "wall": wall, "steps": sol.n_steps,
                      "switches": sol.n_switches, "energy_error": sol.relative_energy_error,
@@ -293,7 +294,7 @@ def size_cost(ns: list[int], T: float = 5.0) -> dict:
             decomposition = len(ta.decomposition)
         solve_chart_exp_ode(chain.metric(), p0, v0, 0.01)
         t0 = time.perf_counter()
-        sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, dense=False)
+        sol = solve_chart_exp_ode(chain.metric(), p0, v0, T, save=SaveAt(dense=False))
         wall = time.perf_counter() - t0
         rows.append({"n": n, "compile": compile_s, "wall_per_time": wall / T, "steps_per_time": sol.n_steps / T,
                      "ms_per_step": 1e3 * wall / max(sol.n_steps, 1), "decomposition": decomposition})

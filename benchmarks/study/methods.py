@@ -21,7 +21,7 @@ from linkage.ambient import integrate_ambient
 from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
-from manifold import GeodesicIntegrationError, ScipyStepper, compiled, solve_chart_exp_ode
+from manifold import GeodesicIntegrationError, Precision, SaveAt, ScipyStepper, compiled, solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.constrained import compiled_constrained
 from manifold.sundman import SundmanStepper, SundmanTime
@@ -77,7 +77,7 @@ def _warm_up(chain: Chain, tol=None, scipy: bool = False, factor=None, velocity=
 def atlas_taylor(chain: Chain, p0, v0, T, ts, tol) -> Run:
     """Method 1 (ours): heyoka Taylor in the atlas, event-located switches."""
     _warm_up(chain, tol)
-    sol, wall = _timed(lambda: solve_chart_exp_ode(chain.metric(), p0, v0, T, tol=tol))
+    sol, wall = _timed(lambda: solve_chart_exp_ode(chain.metric(), p0, v0, T, precision=Precision(tol=tol)))
     return from_solution("atlas Taylor (ours)", tol, chain, sol, wall, ts)
 
 
@@ -110,7 +110,7 @@ def single_chart_taylor(chain: Chain, p0, v0, T, ts, tol, chart: int = 0) -> Run
     t0 = time.perf_counter()
     failed = None
     try:
-        sol = solve_chart_exp_ode(chain.metric(), a0, c0, T, tol=tol, chart=chart, switching=False)
+        sol = solve_chart_exp_ode(chain.metric(), a0, c0, T, precision=Precision(tol=tol), chart=chart, switching=False)
     except GeodesicIntegrationError as err:  # keep what was computed before the breakdown
         sol, failed = err.solution, str(err)
     wall = time.perf_counter() - t0
@@ -133,8 +133,9 @@ def scipy_atlas(chain: Chain, p0, v0, T, ts, rtol, method: str = "DOP853") -> Ru
 def hinge_taylor(chain: Chain, p0, v0, T, ts, tol) -> Run:
     """Method 5 (ours): heyoka Taylor in hinge coordinates, Baumgarte-stabilised rod constraints."""
     h0, w0 = chain.from_point(p0), chain.from_point(v0)
-    free_motion(chain, h0, w0, min(T, 0.1), method="hinges", tol=tol)  # compile outside the timing
-    m, wall = _timed(lambda: free_motion(chain, h0, w0, T, method="hinges", tol=tol, t_eval=ts, dense=False))
+    free_motion(chain, h0, w0, min(T, 0.1), method="hinges", precision=Precision(tol=tol))  # compile outside the timing
+    m, wall = _timed(lambda: free_motion(chain, h0, w0, T, method="hinges", save=SaveAt(t_eval=ts, dense=False),
+                                         precision=Precision(tol=tol)))
     return Run("hinge Taylor (ours)", tol, wall, m.times, m.hinges, m.energies, None, m.n_steps)
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from manifold.budget import Budget
+from manifold.options import Precision, SaveAt
 from manifold.progress import ProgressUpdate
 from manifold.solution import SolveStatus
 
@@ -268,7 +269,8 @@ def solve_motion(request: MotionRequest, limits: Limits, cancelled: Callable[[],
             raise Cancelled(f"cancelled at t = {update.t:g}")
 
     motion = free_motion(request.chain, request.hinges, request.velocity, request.T, method=request.method,
-                         fp_type=request.precision, t_eval=request.times, budget=Budget(steps=limits.max_steps),
+                         precision=Precision(request.precision), save=SaveAt(request.times),
+                         budget=Budget(steps=limits.max_steps),
                          throw=False, progress=report if cancelled is not None else False)
     if motion.solution.status is not SolveStatus.SUCCESS:
         raise RequestError("T", f"the solve stopped at t = {float(motion.solution.t_reached):g} of T = "
