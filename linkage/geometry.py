@@ -33,6 +33,7 @@ from manifold.constrained import ConstrainedGeometry, solve_constrained
 from manifold.geodesic_solver import at_rest
 from manifold.jacobi import JacobiField
 from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
+from manifold.precision import is_double
 from manifold.sundman import SundmanStepper
 from manifold.transport import ParallelTransport
 from manifold.validation import check_positive_int, check_real
@@ -420,7 +421,7 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
         if name in options:
             raise TypeError(f"log does not take {name}= (it shoots in float64 with dense output)")
     precision = check_group("precision", precision, Precision)
-    if precision.fp_type is not float:
+    if not is_double(precision.fp_type):
         raise ValueError(f"log shoots in float64 (the targets are float64 configurations), got "
                          f"precision=Precision(fp_type={precision.fp_type!r})")
     h0 = chain.check_one_configuration(hinges0, "hinges0")

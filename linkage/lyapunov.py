@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from manifold.ensemble import chunk_bounds, default_chunk_size, map_chunks
 from manifold.lyapunov import LyapunovResult, lyapunov_spectrum
 from manifold.options import DEFAULT_PRECISION, Precision, check_group, takes_option_groups
+from manifold.precision import is_double
 from manifold.progress import ProgressArgument
 from manifold.validation import check_positive_int
 
@@ -28,7 +29,7 @@ def _spectrum_options(precision: Precision, options: dict[str, Any]) -> dict[str
     """The keywords of :func:`manifold.lyapunov.lyapunov_spectrum`: ``precision``'s tolerance with the ``options``;
     ``ValueError`` for a ``precision`` other than float64, the only one of its tangent integrators."""
     precision = check_group("precision", precision, Precision)
-    if precision.fp_type is not float:
+    if not is_double(precision.fp_type):
         raise ValueError(f"Lyapunov exponents are computed in float64, got precision=Precision(fp_type="
                          f"{precision.fp_type!r})")
     return {"tol": precision.tol, **options}

@@ -24,7 +24,8 @@ from .precision import resolve_fp_type
 from .steppers import MAX_TOLERANCE
 from .validation import check_bool, check_real, check_time_grid, real_array
 
-__all__ = ["DEFAULT_PRECISION", "DEFAULT_SAVE", "MOVED_OPTIONS", "Precision", "SaveAt", "check_group", "refuse_moved_options", "takes_option_groups"]
+__all__ = ["DEFAULT_PRECISION", "DEFAULT_SAVE", "MOVED_OPTIONS", "Precision", "SaveAt", "check_group",
+           "refuse_moved_options", "takes_option_groups"]
 
 G = TypeVar("G")
 
@@ -104,8 +105,8 @@ class Precision:
         heyoka's tolerance, a real number in ``(0, 1e-2]``
         (:data:`manifold.steppers.MAX_TOLERANCE`); ``None`` (default) is the
         solver's default for ``fp_type`` (:func:`manifold.compiled.default_tolerance`:
-        1e-14 in float64, the machine epsilon of other types).  A Taylor
-        method's local error per step is ``tol`` relative to the state's size.
+        1e-14 in float64, the machine epsilon of other types).  heyoka uses it
+        as its absolute and relative tolerance at once.
 
     Raises
     ------
@@ -124,8 +125,8 @@ class Precision:
             object.__setattr__(self, "tol", check_real("tol", self.tol, positive=True, at_most=MAX_TOLERANCE))
 
 
-#: The groups' defaults, shared by every solver's signature: dense output and no grid; float64 at the solver's
-#: default tolerance.
+#: The groups' defaults, shared by every solver's signature: no grid, dense output as the solver keeps it by
+#: default; float64 at the solver's default tolerance.
 DEFAULT_SAVE, DEFAULT_PRECISION = SaveAt(), Precision()
 
 

@@ -154,3 +154,15 @@ def test_the_tolerance_of_precision_reaches_the_chart_method_stepper():
     with pytest.raises(ValueError, match="give tol to the stepper"):
         free_motion(chain, h0[0], v0[0], 2.0, method="charts", stepper=TaylorStepper(),
                     precision=Precision(tol=1e-10))
+
+
+def test_the_float64_only_functions_take_float64_by_any_name_and_refuse_the_others():
+    chain = Chain(4, 2.6)
+    h0, v0 = sample_starts(chain, 1, 0.5, np.random.default_rng(3))
+    for name in ("longdouble", "real128"):
+        with pytest.raises(ValueError, match="Lyapunov exponents are computed in float64"):
+            lyapunov_exponent(chain, h0[0], v0[0], 1.0, precision=Precision(name))
+        with pytest.raises(ValueError, match="log shoots in float64"):
+            geometry.log(chain, h0[0], h0[0], precision=Precision(name))
+    for name in (float, np.float64, "float64"):  # the same configuration: the zero velocity, at once
+        assert geometry.log(chain, h0[0], h0[0], precision=Precision(name)).distance == 0.0
