@@ -166,3 +166,14 @@ def test_the_float64_only_functions_take_float64_by_any_name_and_refuse_the_othe
             geometry.log(chain, h0[0], h0[0], precision=Precision(name))
     for name in (float, np.float64, "float64"):  # the same configuration: the zero velocity, at once
         assert geometry.log(chain, h0[0], h0[0], precision=Precision(name)).distance == 0.0
+
+
+def test_the_carried_quantities_refuse_to_drop_the_dense_output_they_are_read_from():
+    chain = Chain(4, 2.6)
+    h0, v0 = sample_starts(chain, 1, 0.5, np.random.default_rng(4))
+    with pytest.raises(TypeError, match=r"read from dense output: save=SaveAt\(dense=False\) is not taken"):
+        geometry.parallel_transport(chain, h0[0], v0[0], v0[0], 1.0, save=SaveAt(dense=False))
+    with pytest.raises(TypeError, match=r"read from dense output: save=SaveAt\(dense=False\) is not taken"):
+        sensitivity(chain, h0[0], v0[0], 1.0, save=SaveAt([0.0, 1.0], dense=False))
+    with pytest.raises(TypeError, match=r"precision must be a manifold.Precision"):
+        geometry.exp(chain, h0[0], v0[0], 1.0, precision="longdouble")
