@@ -73,8 +73,7 @@ class SaveAt:
             grid = real_array("t_eval", self.t_eval)
             if grid.ndim != 1:
                 raise ValueError(f"t_eval must be a 1-d array of times, got shape {grid.shape}")
-            grid = grid.copy()  # the caller's array may change later; ours may not
-            grid.setflags(write=False)
+            grid.setflags(write=False)  # real_array made a copy: the caller's array may change later, ours may not
             object.__setattr__(self, "t_eval", grid)
 
     def __reduce__(self) -> tuple:
