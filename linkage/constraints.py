@@ -28,6 +28,10 @@ which is K-orthogonal to the tangent space ``ker G``.  :class:`HingeConstraints`
 holds it and what follows from it: the constrained acceleration, the
 K-orthogonal projection of a velocity onto the tangent space, and Gauss-Newton
 projection of a position onto ``c = 0``.  Everything is float64.
+:class:`ChainSystem` is the same constraints as heyoka expressions for the
+hinge Taylor method.  Both evaluate the rods, ``c``, ``G``, ``G v`` and
+``(dG/dt) v`` from the one formula of :mod:`linkage.rods`, with the same
+``1 / l_k^2`` rounded once.
 """
 
 from __future__ import annotations
@@ -41,9 +45,11 @@ from numpy.typing import ArrayLike, NDArray
 import heyoka as hy
 
 from charts.chain_geometry import to_real
+from manifold.backends import Cx
 from manifold.constrained import ConstrainedSystem
 from manifold.validation import check_bool, check_real
 
+from . import rods
 from .chain import Chain
 
 __all__ = ["ChainSystem", "HingeConstraints", "start_state", "start_states"]
@@ -68,6 +74,8 @@ class HingeConstraints:
 
     Attributes
     ----------
+    chain
+        The chain.
     n, L, lengths
         Number of rods, pin distance and rod lengths ``l_1 .. l_n`` of the chain.
     ambient_dim
@@ -77,9 +85,11 @@ class HingeConstraints:
     """
 
     def __init__(self, chain: Chain) -> None:
-        self.n, self.L, self.lengths = chain.n, chain.L, chain.lengths
+        self.chain, self.n, self.L, self.lengths = chain, chain.n, chain.L, chain.lengths
         self.ambient_dim = 2 * (self.n - 1)
         self.K, self._mass_matrix = chain.ambient_metric, chain.mass_matrix
+        # 1 / l_k^2 rounded once, as the compiled code's parameters (ChainSystem.parameters)
+        self._q = list(_inverse_squares(np.asarray(chain.lengths, dtype=float).tobytes()))
 
     @functools.cached_property
     def K_inv(self) -> NDArray:
@@ -89,15 +99,15 @@ class HingeConstraints:
     def __repr__(self) -> str:
         return f"HingeConstraints(n={self.n}, L={self.L!r})"
 
-    def _rods(self, x: NDArray) -> NDArray:
-        """Real rod vectors ``(..., n, 2)`` of real hinge vectors ``x`` ``(..., 2(n-1))``."""
-        hinges = x.reshape(*x.shape[:-1], -1, 2)
-        pins = np.zeros((*x.shape[:-1], 1, 2))
-        return np.diff(np.concatenate([pins, hinges, pins + [self.L, 0.0]], axis=-2), axis=-2)
+    def _rods(self, x: NDArray) -> list[Cx]:
+        """The rods (:func:`linkage.rods.rod_vectors`) of real hinge vectors ``x`` ``(..., 2(n-1))``: ``n`` pairs of
+        numbers or arrays of the batch shape."""
+        return rods.rod_vectors(list(np.moveaxis(x, -1, 0)), self.L)
 
-    def _rod_velocities(self, v: NDArray) -> NDArray:
-        """``e_k'`` ``(n, 2)``: the pins do not move."""
-        return np.diff(np.concatenate([[[0.0, 0.0]], v.reshape(-1, 2), [[0.0, 0.0]]]), axis=0)
+    @staticmethod
+    def _rod_rates(v: NDArray) -> list[Cx]:
+        """The rods' rates ``e_k'`` of real hinge velocities ``v`` ``(..., 2(n-1))``: the pins do not move."""
+        return rods.rod_vectors(list(np.moveaxis(v, -1, 0)), 0.0)
 
     def constraints(self, x: NDArray) -> NDArray:
         """The constraint values ``c_k(x) = |e_k|^2 / l_k^2 - 1``, ``k = 1..n``.
@@ -105,14 +115,14 @@ class HingeConstraints:
         Parameters
         ----------
         x
-            Real hinge vector, shape ``(2(n-1),)``.
+            Real hinge vector(s), shape ``(..., 2(n-1))``.
 
         Returns
         -------
         numpy.ndarray
-            ``c``, shape ``(n,)``; zero exactly on the configuration space.
+            ``c``, shape ``(..., n)``; zero exactly on the configuration space.
         """
-        return np.sum(self._rods(x) ** 2, axis=1) / self.lengths**2 - 1.0
+        return np.stack(rods.relative_residuals(self._rods(x), self._q, 1.0), axis=-1)
 
     def jacobian(self, x: NDArray) -> NDArray:
         """The constraint Jacobian ``G = dc/dx``.
@@ -131,7 +141,7 @@ class HingeConstraints:
         numpy.ndarray
             ``G``, shape ``(..., n, 2(n-1))``.
         """
-        E = 2.0 * self._rods(x) / self.lengths[:, None] ** 2  # (..., n, 2)
+        E = np.stack([np.stack([g.re, g.im], axis=-1) for g in rods.gradients(self._rods(x), self._q)], axis=-2)
         j = np.arange(self.n - 1)
         G = np.zeros((*x.shape[:-1], self.n, self.n - 1, 2))
         G[..., j, j, :] = E[..., :-1, :]
@@ -144,7 +154,7 @@ class HingeConstraints:
         ``l_k (G v)_k = 2 e_k . e_k' / l_k`` is twice the rate of change of rod
         length ``k``, a velocity (for unit rods it is ``(G v)_k`` itself).
         """
-        Gv = np.einsum("...kj,...j->...k", self.jacobian(x), v)
+        Gv = np.stack(rods.constraint_rates(self._rods(x), self._rod_rates(v), self._q), axis=-1)
         return np.max(self.lengths * np.abs(Gv), axis=-1)
 
     def tangency_allowance(self, v: NDArray, tangent_tol: float) -> NDArray:
@@ -207,8 +217,8 @@ class HingeConstraints:
         numpy.ndarray
             ``x''``, shape ``(2(n-1),)``.
         """
-        Ed = self._rod_velocities(v)
-        return self.min_norm_correction(self.jacobian(x), -2.0 * np.sum(Ed**2, axis=1) / self.lengths**2)
+        r = -np.stack(rods.velocity_terms(self._rod_rates(v), self._q), axis=-1)
+        return self.min_norm_correction(self.jacobian(x), r)
 
     def project_velocity(self, x: NDArray, v: NDArray) -> NDArray:
         """K-orthogonal projection of ``v`` onto the tangent space ``ker G(x)``.
@@ -384,6 +394,13 @@ def start_states(
 
 
 @functools.lru_cache(maxsize=256)
+def _inverse_squares(lengths: bytes) -> tuple[float, ...]:
+    """``1 / l_k^2`` of the float64 lengths' bytes, each rounded once from its exact value (the float64 values of
+    :attr:`ChainSystem.parameters`)."""
+    return tuple(float(1 / Fraction(float(l)) ** 2) for l in np.frombuffer(lengths, dtype=float))
+
+
+@functools.lru_cache(maxsize=256)
 def _chain_parameters(L: float, lengths: bytes) -> NDArray:
     """:attr:`ChainSystem.parameters` of the base ``L`` and the float64 lengths' bytes (read-only; the rational
     arithmetic cost ~0.1 ms a solve at n = 4)."""
@@ -391,6 +408,11 @@ def _chain_parameters(L: float, lengths: bytes) -> NDArray:
     out = np.array([Fraction(L), *inverse_squares], dtype=object)
     out.flags.writeable = False
     return out
+
+
+def _rod_rates(v: list) -> list:
+    """The rods' rates ``e_k'`` as expressions: the rods of the hinge velocities ``v``, the pins at rest."""
+    return rods.rod_vectors(v, hy.expression(0.0))
 
 
 class ChainSystem(ConstrainedSystem):
@@ -443,59 +465,37 @@ class ChainSystem(ConstrainedSystem):
     def metric_matrix(self) -> NDArray:
         return self.chain.ambient_metric
 
-    def _rod_expressions(self, x: list, L: hy.expression) -> list[tuple[hy.expression, hy.expression]]:
-        """The rods ``e_k`` as ``(x, y)`` expressions, pins ``0`` and ``L``."""
-        hx, hy_ = x[0::2], x[1::2]
-        rods = [(hx[0], hy_[0])]  # e_1 = p_1
-        rods += [(hx[k] - hx[k - 1], hy_[k] - hy_[k - 1]) for k in range(1, self.chain.n - 1)]
-        rods.append((L - hx[-1], -hy_[-1]))  # e_n = L - p_{n-1}
-        return rods
-
-    def _gradients(self, x: list, p: list) -> list[tuple[hy.expression, hy.expression]]:
-        """``g_k = 2 e_k / l_k^2`` from the parameters ``p = [L, 1 / l_1^2, ...]``."""
-        return [(q * (2.0 * ex), q * (2.0 * ey)) for (ex, ey), q in zip(self._rod_expressions(x, p[0]), p[1:])]
-
-    def _rod_rates(self, v: list) -> list[tuple[hy.expression, hy.expression]]:
-        """The rods' rates ``e_k'`` from the hinge velocities ``v``: the pins do not move."""
-        return self._rod_expressions(v, hy.expression(0.0))
-
-    def _squared_lengths(self, x: list, L: hy.expression) -> list[hy.expression]:
-        """``|e_k|^2``, built the same way wherever used, so that heyoka computes each once."""
-        return [ex * ex + ey * ey for ex, ey in self._rod_expressions(x, L)]
-
     def constraint_expressions(self, x: list, p: list, fp_type) -> list:
-        """``|e_k|^2 / l_k^2 - 1`` with the pins ``0`` and ``L = p[0]``, ``1 / l_k^2 = p[k]``."""
-        one = hy.expression(fp_type(1.0))
-        return [s * q - one for s, q in zip(self._squared_lengths(x, p[0]), p[1:])]
+        """``|e_k|^2 / l_k^2 - 1`` with the pins ``0`` and ``L = p[0]``, ``1 / l_k^2 = p[k]``
+        (:func:`linkage.rods.relative_residuals`)."""
+        return rods.relative_residuals(rods.rod_vectors(x, p[0]), p[1:], hy.expression(fp_type(1.0)))
 
     def constraint_rate_expressions(self, x: list, v: list, p: list, G: list) -> list:
-        """``G v = 2 e_k . e_k' / l_k^2``: two products per rod where the rows of ``G`` take four (two at the pins)."""
-        rods, rates = self._rod_expressions(x, p[0]), self._rod_rates(v)
-        return [q * (2.0 * (ex * dx + ey * dy)) for (ex, ey), (dx, dy), q in zip(rods, rates, p[1:])]
+        """``G v = 2 e_k . e_k' / l_k^2`` (:func:`linkage.rods.constraint_rates`)."""
+        return rods.constraint_rates(rods.rod_vectors(x, p[0]), _rod_rates(v), p[1:])
 
     def jacobian_expressions(self, x: list, p: list, c: list) -> list[list[hy.expression | None]]:
         """``G``: row ``k`` is ``g_k = 2 e_k / l_k^2`` on hinge ``k`` and ``-g_k`` on hinge ``k - 1`` (written by
         hand: heyoka's derivative makes ``2 / l_k^2`` a node of its own, and every product with it a full
         Taylor product)."""
         G: list[list[hy.expression | None]] = [[None] * len(x) for _ in c]
-        for k, (gx, gy) in enumerate(self._gradients(x, p)):
+        for k, g in enumerate(rods.gradients(rods.rod_vectors(x, p[0]), p[1:])):
             if k < self.chain.n - 1:  # the rod's far end, hinge k (0-based), unless it is the pin L
-                G[k][2 * k], G[k][2 * k + 1] = gx, gy
+                G[k][2 * k], G[k][2 * k + 1] = g.re, g.im
             if k > 0:  # its near end, hinge k - 1, unless it is the pin 0
-                G[k][2 * k - 2], G[k][2 * k - 1] = -gx, -gy
+                G[k][2 * k - 2], G[k][2 * k - 1] = -g.re, -g.im
         return G
 
     def transpose_product_expressions(self, x: list, p: list, G: list, lam: list) -> list:
         """``G^T lambda``: hinge ``j`` feels ``lambda_j g_j - lambda_{j+1} g_{j+1}`` (its rods, 1-based), each
         ``lambda_k g_k`` computed once from the rods (not from ``G``): two products per rod where the entries
         ``+-g_k`` of ``G`` take four (two at the pins)."""
-        pulls = [(lk * gx, lk * gy) for lk, (gx, gy) in zip(lam, self._gradients(x, p))]
+        pulls = [(lk * g.re, lk * g.im) for lk, g in zip(lam, rods.gradients(rods.rod_vectors(x, p[0]), p[1:]))]
         return [c for (ax, ay), (bx, by) in zip(pulls[:-1], pulls[1:]) for c in (ax - bx, ay - by)]
 
     def velocity_term_expressions(self, x: list, v: list, p: list, G: list) -> list:
-        """``(dG/dt) v``: ``2 |e_k'|^2 / l_k^2`` for rod ``k``."""
-        rates = self._rod_rates(v)
-        return [q * (2.0 * (dx * dx + dy * dy)) for (dx, dy), q in zip(rates, p[1:])]
+        """``(dG/dt) v``: ``2 |e_k'|^2 / l_k^2`` for rod ``k`` (:func:`linkage.rods.velocity_terms`)."""
+        return rods.velocity_terms(_rod_rates(v), p[1:])
 
     def baumgarte_term_expressions(self, x: list, v: list, p: list, c: list, Gv: list, curvature: list,
                                    alpha) -> list:
@@ -511,9 +511,8 @@ class ChainSystem(ConstrainedSystem):
         ``2 alpha^2 |e_k|^2 / l_k^2`` against ``alpha^2 (c_k + 2)``, a rounding noise of ``eps alpha^2`` that doubled the energy error
         near the top of the range and made rate 10 no better than rate 1 there.
         """
-        rods, rates = self._rod_expressions(x, p[0]), self._rod_rates(v)
-        return [q * (2.0 * (dx * (dx + alpha * (2.0 * ex)) + dy * (dy + alpha * (2.0 * ey)))) + alpha * (alpha * ck)
-                for (ex, ey), (dx, dy), q, ck in zip(rods, rates, p[1:], c)]
+        return [q * (2.0 * (d.re * (d.re + alpha * (2.0 * e.re)) + d.im * (d.im + alpha * (2.0 * e.im))))
+                + alpha * (alpha * ck) for e, d, q, ck in zip(rods.rod_vectors(x, p[0]), _rod_rates(v), p[1:], c)]
 
     def multiplier_pivots(self, x: list, p: list, inverse_metric: list, fp_type) -> list | None:
         r"""The Thomas pivots of ``M = G K^{-1} G^T`` as sums of non-negative terms (hinge masses, ``K = A (x) I_2``
@@ -543,13 +542,14 @@ class ChainSystem(ConstrainedSystem):
         if any(inverse_metric[i][j] is not None for i in range(N) for j in range(N) if i != j):
             return None
         w = {j + 1: inverse_metric[2 * j][2 * j] for j in range(n - 1)}  # hinge j + 1, the end of rod j + 1
-        g = self._gradients(x, p)
+        e = rods.rod_vectors(x, p[0])
+        g = rods.gradients(e, p[1:])
         # |g_k|^2 = 4 |e_k|^2 / l_k^4 from the constraints' |e_k|^2: products with parameters, no squares of g
-        square = [q * (q * (4.0 * s)) for s, q in zip(self._squared_lengths(x, p[0]), p[1:])]
+        square = [q * (q * (4.0 * ek.abs2())) for ek, q in zip(e, p[1:])]
         pivots = [w[1] * square[0]]  # E_1 = 0: the first rod hangs from a pin
         E = None
         for k in range(1, n):
-            cross = g[k - 1][0] * g[k][1] - g[k - 1][1] * g[k][0]
+            cross = g[k - 1].cross(g[k])
             lagrange = w[k] * (cross * cross)  # a square: half the Taylor recursion of a product
             E = w[k] * (lagrange if E is None else lagrange + square[k] * E) / pivots[k - 1]
             pivots.append(E if k == n - 1 else w[k + 1] * square[k] + E)  # the last rod ends at a pin

@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from manifold.sundman import TimeFactor
 
 from .chain import Chain
+from .rods import rod_vectors
 
 
 def multiplier_determinant(rods: Sequence[tuple[Any, Any]], alpha: Sequence[Any], beta: Sequence[Any],
@@ -88,8 +89,7 @@ class ChainTimeFactor(TimeFactor):
 
     def expression(self, p: Sequence[Any], pars: Sequence[Any]) -> Any:
         n = self.n
-        inner = [(p[2 * j] - p[2 * j - 2], p[2 * j + 1] - p[2 * j - 1]) for j in range(1, n - 1)]
-        rods = [(p[0], p[1]), *inner, (pars[0] - p[2 * n - 4], -p[2 * n - 3])]  # pinned at 0 and (L, 0)
+        rods = [(e.re, e.im) for e in rod_vectors(p, pars[0])]  # pinned at 0 and (L, 0)
         return multiplier_determinant(rods, pars[1:n], pars[n:2 * n - 2], pars[2 * n - 2:3 * n - 4])
 
     def parameters(self) -> NDArray:

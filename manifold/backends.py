@@ -48,6 +48,14 @@ class Cx:
         """``|z|^2 = re^2 + im^2`` (no square root, so smooth everywhere)."""
         return self.re * self.re + self.im * self.im
 
+    def dot(self, other: "Cx") -> Any:
+        """``Re(conj(z) w) = re re' + im im'``: the dot product of the two as plane vectors."""
+        return self.re * other.re + self.im * other.im
+
+    def cross(self, other: "Cx") -> Any:
+        """``Im(conj(z) w) = re im' - im re'``: the cross product of the two as plane vectors."""
+        return self.re * other.im - self.im * other.re
+
 
 class NumpyOps:
     """Backend on numpy arrays (float64 or long double)."""

@@ -1,13 +1,14 @@
 """HingeConstraints: G is dc/dx, the correction is the K-smallest solution, projections land on c = 0, G v = 0."""
 
 import numpy as np
-from hypothesis import assume, given
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.linalg import null_space
 
 from charts import SuspensionChart
 from linkage import Chain
-from linkage.constraints import HingeConstraints
+from linkage.constraints import ChainSystem, HingeConstraints
+from manifold.constrained import ConstrainedGeometry
 
 
 @st.composite
@@ -109,3 +110,23 @@ def test_projections_land_on_the_constraints_and_the_tangent_space(case, spread)
     np.testing.assert_allclose(sys.project_velocity(xp, vp), vp, rtol=0, atol=max(1e-14, floor) * np.linalg.norm(v_off))
     # a point on the constraints stays there (to rounding)
     np.testing.assert_allclose(sys.project_position(xp), xp, rtol=0, atol=1e-14)
+
+
+@settings(max_examples=25, deadline=None)
+@given(systems(), st.floats(0.0, 0.3))
+def test_the_compiled_rods_agree_with_numpys(case, spread):
+    """The heyoka code of ``ChainSystem`` and the numpy code of ``HingeConstraints`` evaluate one formula
+    (``linkage.rods``): ``c``, ``G v`` and the K-smallest correction agree to rounding, on and off the
+    configuration space, and ``G v`` agrees with the product of numpy's ``G`` by ``v``."""
+    sys, x, rng = case
+    x = x + spread * rng.normal(size=x.size)
+    v, r = rng.normal(size=x.size), rng.normal(size=sys.n)
+    c, Gv, correction, energy = ConstrainedGeometry(ChainSystem(sys.chain), float)(x[None], v[None], r[None])
+    G = sys.jacobian(x)
+    scale = max(1.0, float(np.max(np.abs(G))))
+    assert np.max(np.abs(c[0] - sys.constraints(x))) < 1e-14 * max(1.0, float(np.max(np.abs(c))))
+    assert np.max(np.abs(Gv[0] - G @ v)) < 1e-14 * scale * np.linalg.norm(v)
+    assert np.isclose(sys.tangency_residual(x, v), np.max(sys.lengths * np.abs(G @ v)), rtol=1e-13, atol=1e-15)
+    expected = sys.min_norm_correction(G, r)
+    assert np.max(np.abs(correction[0] - expected)) < 1e-9 * max(1.0, float(np.max(np.abs(expected))))
+    assert np.isclose(float(energy[0]), 0.5 * v @ sys.K @ v, rtol=1e-14)
