@@ -60,6 +60,17 @@ _PROJECTION_STEPS = 8
 _PROJECTION_TOL = 1e-15
 
 
+def _entries(a: NDArray) -> list:
+    """The entries of the last axis of ``a`` for :mod:`linkage.rods`: Python floats of a vector (arithmetic on numpy
+    scalars costs ~10x more), arrays of the batch shape otherwise."""
+    return a.tolist() if a.ndim == 1 else list(np.moveaxis(a, -1, 0))
+
+
+def _stacked(values: list) -> NDArray:
+    """Per-rod values (numbers or arrays of the batch shape) as an array ``(..., n)``."""
+    return np.moveaxis(np.asarray(values, dtype=float), 0, -1)
+
+
 class HingeConstraints:
     """The ``n`` rod constraints of ``chain`` in hinge space, with their K-orthogonal corrections.
 
@@ -102,12 +113,12 @@ class HingeConstraints:
     def _rods(self, x: NDArray) -> list[Cx]:
         """The rods (:func:`linkage.rods.rod_vectors`) of real hinge vectors ``x`` ``(..., 2(n-1))``: ``n`` pairs of
         numbers or arrays of the batch shape."""
-        return rods.rod_vectors(list(np.moveaxis(x, -1, 0)), self.L)
+        return rods.rod_vectors(_entries(x), self.L)
 
     @staticmethod
     def _rod_rates(v: NDArray) -> list[Cx]:
         """The rods' rates ``e_k'`` of real hinge velocities ``v`` ``(..., 2(n-1))``: the pins do not move."""
-        return rods.rod_vectors(list(np.moveaxis(v, -1, 0)), 0.0)
+        return rods.rod_vectors(_entries(v), 0.0)
 
     def constraints(self, x: NDArray) -> NDArray:
         """The constraint values ``c_k(x) = |e_k|^2 / l_k^2 - 1``, ``k = 1..n``.
@@ -122,7 +133,7 @@ class HingeConstraints:
         numpy.ndarray
             ``c``, shape ``(..., n)``; zero exactly on the configuration space.
         """
-        return np.stack(rods.relative_residuals(self._rods(x), self._q, 1.0), axis=-1)
+        return _stacked(rods.relative_residuals(self._rods(x), self._q, 1.0))
 
     def jacobian(self, x: NDArray) -> NDArray:
         """The constraint Jacobian ``G = dc/dx``.
@@ -141,7 +152,7 @@ class HingeConstraints:
         numpy.ndarray
             ``G``, shape ``(..., n, 2(n-1))``.
         """
-        E = np.stack([np.stack([g.re, g.im], axis=-1) for g in rods.gradients(self._rods(x), self._q)], axis=-2)
+        E = np.moveaxis(np.asarray([[g.re, g.im] for g in rods.gradients(self._rods(x), self._q)]), (0, 1), (-2, -1))
         j = np.arange(self.n - 1)
         G = np.zeros((*x.shape[:-1], self.n, self.n - 1, 2))
         G[..., j, j, :] = E[..., :-1, :]
@@ -154,7 +165,7 @@ class HingeConstraints:
         ``l_k (G v)_k = 2 e_k . e_k' / l_k`` is twice the rate of change of rod
         length ``k``, a velocity (for unit rods it is ``(G v)_k`` itself).
         """
-        Gv = np.stack(rods.constraint_rates(self._rods(x), self._rod_rates(v), self._q), axis=-1)
+        Gv = _stacked(rods.constraint_rates(self._rods(x), self._rod_rates(v), self._q))
         return np.max(self.lengths * np.abs(Gv), axis=-1)
 
     def tangency_allowance(self, v: NDArray, tangent_tol: float) -> NDArray:
@@ -217,7 +228,7 @@ class HingeConstraints:
         numpy.ndarray
             ``x''``, shape ``(2(n-1),)``.
         """
-        r = -np.stack(rods.velocity_terms(self._rod_rates(v), self._q), axis=-1)
+        r = -_stacked(rods.velocity_terms(self._rod_rates(v), self._q))
         return self.min_norm_correction(self.jacobian(x), r)
 
     def project_velocity(self, x: NDArray, v: NDArray) -> NDArray:

@@ -629,17 +629,23 @@ class ConstrainedGeometry:
         the compiled function evaluates columns independently, so each row
         gets exactly what projecting it alone gives.
         """
-        x, v = x.copy(), v.copy()
+        c, Gv, _, _ = self(x, v)
+        return self._projected(x.copy(), v.copy(), c, Gv)
+
+    def _projected(self, x: NDArray, v: NDArray, c: NDArray, Gv: NDArray) -> tuple[NDArray, NDArray]:
+        """:meth:`project` of rows ``x, v`` (the caller's copies, changed in place) given ``c`` and ``G v`` there."""
         active = np.arange(x.shape[0])
         max_steps = 3 + int(np.ceil(-np.log2(self.eps) / 50))
-        for _ in range(max_steps):
-            c, _, _, _ = self(x[active], v[active])
+        for step in range(max_steps):
+            if step:
+                c = self(x[active], v[active])[0]
             moving = ~(np.max(np.abs(c.astype(float)), axis=1) <= ROUNDING_RESIDUAL * self.eps)
             active, c = active[moving], c[moving]
             if not active.size:
                 break
             x[active] = x[active] - self(x[active], v[active], c)[2]
-        _, Gv, _, _ = self(x, v)
+        if step:  # x moved: G v again at the new x
+            Gv = self(x, v)[1]
         return x, v - self(x, v, Gv)[2]
 
     def start(self, x0: NDArray, v0: NDArray, t_final: float, rate: float,
@@ -656,13 +662,15 @@ class ConstrainedGeometry:
         def name(k: int) -> str:
             return "x0" if first_index is None else f"x0[{first_index + k}]"
 
-        c0 = np.max(np.abs(self(x0.astype(float), v0)[0].astype(float)), axis=1)
+        x, v = as_fp(x0, self.fp), as_fp(v0, self.fp)  # new arrays: the projection changes them in place
+        c, Gv, _, _ = self(x, v)  # the check's c and G v are the projection's first
+        c0 = np.max(np.abs(c.astype(float)), axis=1)
         bad = ~(c0 <= START_CONSTRAINT_TOLERANCE)
         if np.any(bad):
             k = int(np.argmax(bad))
             raise ValueError(f"{name(k)} is not on the constraint manifold: max_k |c_k(x0)| = {c0[k]:.3g} exceeds "
                              f"{START_CONSTRAINT_TOLERANCE:g}")
-        x, v = self.project(as_fp(x0, self.fp), as_fp(v0, self.fp))
+        x, v = self._projected(x, v, c, Gv)
         E0 = self(x, v)[3]
         E0f = np.array([float(e) for e in E0])
         if not np.all(np.isfinite(E0f)):
