@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import functools
 from fractions import Fraction
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -52,7 +53,10 @@ from manifold.validation import check_bool, check_real
 from . import rods
 from .chain import Chain
 
-__all__ = ["ChainSystem", "HingeConstraints", "start_state", "start_states"]
+__all__ = ["TANGENT_TOL", "ChainSystem", "HingeConstraints", "HingeStart", "start_state", "start_states"]
+
+#: The default relative tolerance of every tangency check in ``linkage`` (:meth:`HingeConstraints.tangency_allowance`).
+TANGENT_TOL = 1e-9
 
 #: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
 _PROJECTION_STEPS = 8
@@ -305,10 +309,30 @@ class HingeConstraints:
         return np.concatenate([x, self.project_velocity(x, y[self.ambient_dim :])])
 
 
+class HingeStart(NamedTuple):
+    """A start that :func:`start_state` has checked: the functions that integrate from it take it as it is.
+
+    Attributes
+    ----------
+    constraints
+        The chain's :class:`HingeConstraints` (``constraints.chain`` the chain).
+    x0, v0
+        The real interleaved start position (closing to ``1e-9``) and velocity (tangent, finite energy; projected
+        if asked), float64 ``(2(n-1),)``.
+    t_final
+        The end time, a finite nonzero float.
+    """
+
+    constraints: HingeConstraints
+    x0: NDArray
+    v0: NDArray
+    t_final: float
+
+
 def start_state(
     chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, tangent_tol: float, project_velocity: bool
-) -> tuple[HingeConstraints, NDArray, NDArray, float]:
-    """Validate the start of a hinge-space integration (shared by every hinge-space method).
+) -> HingeStart:
+    """Validate the start of a hinge-space integration (shared by every hinge-space method), once per solve.
 
     Parameters
     ----------
@@ -333,7 +357,7 @@ def start_state(
 
     Returns
     -------
-    tuple
+    HingeStart
         ``(constraints, x0, v0, t_final)``: the chain's :class:`HingeConstraints`,
         the real interleaved start position and velocity, and ``t_final`` as a float.
     """
@@ -361,7 +385,7 @@ def start_state(
                 "(pass project_velocity=True to project it)"
             )
         v0 = system.project_velocity(x0, v0)
-    return system, x0, v0, t_final
+    return HingeStart(system, x0, v0, t_final)
 
 
 def start_states(

@@ -40,7 +40,7 @@ from manifold.validation import check_positive_int, check_real
 
 from .chain import Chain
 from .diagonal_path import DiagonalPath
-from .constraints import ChainSystem, HingeConstraints, start_state
+from .constraints import TANGENT_TOL, ChainSystem, HingeConstraints, HingeStart, start_state
 from .time_factor import ChainTimeFactor
 
 #: Where a geodesic with quantities carried along it is integrated: in hinge coordinates (any generic lengths) or
@@ -111,14 +111,14 @@ class JacobiFieldMotion(CarriedMotion):
         return self._values["field_derivative"]
 
 
-def _tangent_vectors(chain: Chain, x0: NDArray, values: ArrayLike, name: str,
+def _tangent_vectors(constraints: HingeConstraints, x0: NDArray, values: ArrayLike, name: str,
                      tangent_tol: float) -> tuple[NDArray, bool]:
     """Complex tangent vectors at ``x0`` (shape ``(n-1,)`` or ``(k, n-1)``) as real rows ``(k, N)``, checked."""
+    chain = constraints.chain
     w = chain.as_hinges(values, name)
     if w.ndim not in (1, 2) or w.shape[-1] != chain.n - 1 or w.size == 0:
         raise ValueError(f"{name} must have shape (n - 1,) = ({chain.n - 1},) or (k, {chain.n - 1}), got {w.shape}")
     rows = np.atleast_2d(chain.to_point(w)).astype(float)
-    constraints = HingeConstraints(chain)
     residual = constraints.tangency_residual(np.broadcast_to(x0, rows.shape), rows)
     allowed = constraints.tangency_allowance(rows, tangent_tol)
     bad = ~(residual <= allowed)
@@ -136,17 +136,24 @@ def _times(grid: NDArray | None, carried: CarriedSolution) -> NDArray:
     return grid
 
 
-def _solve(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, term_of: Callable[[NDArray], CarriedTerm],
-           save: SaveAt, precision: Precision, tangent_tol: float, method: str,
-           options: dict[str, Any]) -> tuple[CarriedSolution, NDArray]:
+def checked_start(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, save: SaveAt,
+                  tangent_tol: float, method: str) -> tuple[HingeStart, NDArray | None]:
+    """The start of a solve with terms carried by ``method``, checked once (:func:`linkage.constraints.start_state`,
+    the time named ``T``), and the grid of ``save`` (or ``None``: every step)."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    save, precision = check_group("save", save, SaveAt), check_group("precision", precision, Precision)
+    save = check_group("save", save, SaveAt)
     if not save.keeps_dense(True):
         raise TypeError("the carried values are read from dense output: save=SaveAt(dense=False) is not taken")
-    _, x0, v0, T = start_state(chain, hinges0, velocity0, check_real("T", T, nonzero=True), tangent_tol, False)
-    grid = save.grid(T)
-    term: CarriedTerm = term_of(x0)
+    start = start_state(chain, hinges0, velocity0, check_real("T", T, nonzero=True), tangent_tol, False)
+    return start, save.grid(start.t_final)
+
+
+def _solve(start: HingeStart, term: CarriedTerm, grid: NDArray | None, precision: Precision, method: str,
+           options: dict[str, Any]) -> tuple[CarriedSolution, NDArray]:
+    """Integrate from a checked start with ``term`` carried, by ``method``; the solution and its sample times."""
+    precision = check_group("precision", precision, Precision)
+    chain, x0, v0, T = start.constraints.chain, start.x0, start.v0, start.t_final
     if method == "hinges":
         carried = solve_carried(ChainSystem(chain), x0, v0, T, [term], precision=precision, **options)
     else:
@@ -182,7 +189,7 @@ def _solve_in_charts(chain: Chain, x0: NDArray, v0: NDArray, T: float, term: Car
 
 @takes_option_groups
 def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, *,
-        precision: Precision = DEFAULT_PRECISION, tangent_tol: float = 1e-9, **options: Any) -> NDArray:
+        precision: Precision = DEFAULT_PRECISION, tangent_tol: float = TANGENT_TOL, **options: Any) -> NDArray:
     """The exponential map: the hinges at time ``t`` of the geodesic from ``hinges0`` with velocity ``velocity0``.
 
     Parameters
@@ -216,7 +223,7 @@ def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, 
 @takes_option_groups
 def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, vectors0: ArrayLike, T: float, *,
                        save: SaveAt = DEFAULT_SAVE, precision: Precision = DEFAULT_PRECISION, method: str = "hinges",
-                       tangent_tol: float = 1e-9, **options: Any) -> TransportedVectors:
+                       tangent_tol: float = TANGENT_TOL, **options: Any) -> TransportedVectors:
     """Transport tangent vectors parallel along the geodesic from ``(hinges0, velocity0)`` for the time ``T``.
 
     ``W' = -K^{-1} G^T M^{-1} ((dG/dt) W)`` in hinge coordinates
@@ -260,21 +267,16 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
         ``times``, ``hinges``, ``velocities``, ``vectors``; callable at other times.
     """
     tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
-    single: list[bool] = []
-
-    def term(x0: NDArray) -> CarriedTerm:
-        rows, one = _tangent_vectors(chain, x0, vectors0, "vectors0", tangent_tol)
-        single.append(one)
-        return ParallelTransport(rows)
-
-    carried, times = _solve(chain, hinges0, velocity0, T, term, save, precision, tangent_tol, method, options)
-    return TransportedVectors(chain, carried, times, single[0])
+    start, grid = checked_start(chain, hinges0, velocity0, T, save, tangent_tol, method)
+    rows, single = _tangent_vectors(start.constraints, start.x0, vectors0, "vectors0", tangent_tol)
+    carried, times = _solve(start, ParallelTransport(rows), grid, precision, method, options)
+    return TransportedVectors(chain, carried, times, single)
 
 
 @takes_option_groups
 def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0: ArrayLike, derivative0: ArrayLike,
                  T: float, *, save: SaveAt = DEFAULT_SAVE, precision: Precision = DEFAULT_PRECISION,
-                 method: str = "hinges", tangent_tol: float = 1e-9, checked: bool = True,
+                 method: str = "hinges", tangent_tol: float = TANGENT_TOL, checked: bool = True,
                  **options: Any) -> JacobiFieldMotion:
     """The Jacobi field along the geodesic from ``(hinges0, velocity0)`` with ``J(0) = field0``, ``D_t J(0) = derivative0``.
 
@@ -298,19 +300,22 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
         ``times``, ``hinges``, ``velocities``, ``field``, ``field_derivative``; callable at other times.
     """
     tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
-    single: list[bool] = []
+    start, grid = checked_start(chain, hinges0, velocity0, T, save, tangent_tol, method)
+    return jacobi_field_from(start, field0, derivative0, grid, precision, method, tangent_tol, checked, options)
 
-    def term(x0: NDArray) -> CarriedTerm:
-        J, one = _tangent_vectors(chain, x0, field0, "field0", tangent_tol)
-        U, _ = _tangent_vectors(chain, x0, derivative0, "derivative0", tangent_tol)
-        if J.shape != U.shape:
-            raise ValueError(f"field0 and derivative0 must have one shape, got {np.shape(field0)} and "
-                             f"{np.shape(derivative0)}")
-        single.append(one)
-        return JacobiField(J, U, checked)
 
-    carried, times = _solve(chain, hinges0, velocity0, T, term, save, precision, tangent_tol, method, options)
-    return JacobiFieldMotion(chain, carried, times, single[0])
+def jacobi_field_from(start: HingeStart, field0: ArrayLike, derivative0: ArrayLike, grid: NDArray | None,
+                      precision: Precision, method: str, tangent_tol: float, checked: bool,
+                      options: dict[str, Any]) -> JacobiFieldMotion:
+    """:func:`jacobi_field` from a start that :func:`checked_start` has checked (with its grid, or ``None``): the
+    fields are checked for tangency, the start is not checked again."""
+    J, single = _tangent_vectors(start.constraints, start.x0, field0, "field0", tangent_tol)
+    U, _ = _tangent_vectors(start.constraints, start.x0, derivative0, "derivative0", tangent_tol)
+    if J.shape != U.shape:
+        raise ValueError(f"field0 and derivative0 must have one shape, got {np.shape(field0)} and "
+                         f"{np.shape(derivative0)}")
+    carried, times = _solve(start, JacobiField(J, U, checked), grid, precision, method, options)
+    return JacobiFieldMotion(start.constraints.chain, carried, times, single)
 
 
 class LogResult:
@@ -349,7 +354,14 @@ def tangent_basis(chain: Chain, hinges: ArrayLike) -> NDArray:
     loses rank).
     """
     x = chain.to_point(chain.check_one_configuration(hinges, "hinges")).astype(float)
-    _, s, Vt = np.linalg.svd(HingeConstraints(chain).jacobian(x))
+    return tangent_basis_at(HingeConstraints(chain), x)
+
+
+def tangent_basis_at(constraints: HingeConstraints, x: NDArray) -> NDArray:
+    """:func:`tangent_basis` at a checked configuration ``x`` (real interleaved, ``(2(n-1),)``) of
+    ``constraints.chain``."""
+    chain = constraints.chain
+    _, s, Vt = np.linalg.svd(constraints.jacobian(x))
     rank = int(np.sum(s > s[0] * 1e-12))
     if rank < chain.n:
         raise ValueError(f"hinges is a singular configuration (the rod constraints have rank {rank} < n = {chain.n} "
@@ -432,7 +444,7 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
     K = chain.ambient_metric
     guesses = []
     if velocity_guess is not None:
-        guess, single = _tangent_vectors(chain, x0, velocity_guess, "velocity_guess", 1e-9)
+        guess, single = _tangent_vectors(constraints, x0, velocity_guess, "velocity_guess", TANGENT_TOL)
         if not single:
             raise ValueError(f"velocity_guess must have shape (n - 1,) = ({chain.n - 1},), got "
                              f"{np.shape(velocity_guess)}")

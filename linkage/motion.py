@@ -29,7 +29,7 @@ from manifold.progress import ProgressArgument
 from manifold.sundman import SundmanStepper
 
 from .chain import Chain
-from .constraints import ChainSystem, start_state
+from .constraints import TANGENT_TOL, ChainSystem, start_state
 from .ensemble import EnsembleMotion, free_motions
 from .lyapunov import lyapunov_exponent, lyapunov_exponents
 from .time_factor import ChainTimeFactor
@@ -226,7 +226,7 @@ def free_motion(
     method: str = AUTO,
     save: SaveAt = DEFAULT_SAVE,
     precision: Precision = DEFAULT_PRECISION,
-    tangent_tol: float = 1e-9,
+    tangent_tol: float = TANGENT_TOL,
     project_velocity: bool = False,
     progress: ProgressArgument = None,
     **kwargs: Any,

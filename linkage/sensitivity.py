@@ -32,12 +32,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold.compiled import default_tolerance
 from manifold.constrained import speed_scale
-from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, takes_option_groups
+from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
 from manifold.precision import unit_roundoff
+from manifold.validation import check_real
 
 from .chain import Chain
-from .constraints import ChainSystem, start_state
-from .geometry import jacobi_field, tangent_basis
+from .constraints import TANGENT_TOL, ChainSystem
+from .geometry import checked_start, jacobi_field_from, tangent_basis_at
 
 __all__ = ["DEFAULT_THRESHOLD", "Sensitivity", "SensitivityWarning", "sensitivity"]
 
@@ -117,22 +118,24 @@ def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float
     threshold = float(threshold)
     if not threshold > 0 or not np.isfinite(threshold):
         raise ValueError(f"threshold must be a finite number > 0, got {threshold!r}")
-    _, _, v0, _ = start_state(chain, hinges0, velocity0, T, options.get("tangent_tol", 1e-9), False)
-    basis = tangent_basis(chain, hinges0)
+    tangent_tol = check_real("tangent_tol", options.pop("tangent_tol", TANGENT_TOL), positive=True)
+    precision = check_group("precision", precision, Precision)
+    start, grid = checked_start(chain, hinges0, velocity0, T, save, tangent_tol, method)
+    v0 = start.v0
+    basis = tangent_basis_at(start.constraints, start.x0)
     energy = float(0.5 * v0 @ chain.ambient_metric @ v0)
     # at rest there is no speed to set a time unit; the run's own length serves (A then measures J(T) = T U0)
     tau = 1.0 / (np.sqrt(2 * energy) * speed_scale(ChainSystem(chain))) if energy > 0 else abs(float(T))
     zeros = np.zeros_like(basis)
-    fields = jacobi_field(chain, hinges0, velocity0, np.concatenate([basis, zeros]),
-                          np.concatenate([zeros, basis / tau]), T, save=save, precision=precision, method=method,
-                          checked=False, **options)
+    fields = jacobi_field_from(start, np.concatenate([basis, zeros]), np.concatenate([zeros, basis / tau]), grid,
+                               precision, method, tangent_tol, False, options)
     solution = fields.carried.solution
     R = np.linalg.cholesky(chain.ambient_metric).T  # |x|_K = |R x|
     J = chain.to_point(fields.field) @ R.T  # (times, 2k, N), Euclidean after R
     U = chain.to_point(fields.field_derivative) @ R.T * tau
     columns = np.concatenate([J, U], axis=2)  # Phi's columns, (times, 2k, 2N)
     amplification = np.linalg.svd(columns, compute_uv=False)[:, 0]
-    fp_type = precision.fp_type  # a Precision: jacobi_field checked it
+    fp_type = precision.fp_type
     tol = precision.tol or default_tolerance(fp_type) or unit_roundoff(fp_type)
     level = max(float(tol), float(solution.relative_energy_error))
     result = Sensitivity(fields.times, amplification, level, float(tau))

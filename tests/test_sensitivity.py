@@ -9,7 +9,9 @@ import warnings
 import numpy as np
 import pytest
 
+import linkage.geometry
 from linkage import Chain
+from linkage.constraints import HingeConstraints
 from linkage.geometry import tangent_basis
 from linkage.motion import free_motion
 from linkage.sampling import sample_starts
@@ -74,3 +76,32 @@ def test_a_bad_threshold_is_refused_by_name(bad):
     h0, v0 = _start()
     with pytest.raises(ValueError, match="threshold must be a finite number > 0"):
         sensitivity(CHAIN, h0, v0, T, threshold=bad)
+
+
+def test_the_start_is_checked_once_and_by_the_tangent_tolerance_given(monkeypatch):
+    """One ``start_state`` and one closure check per call; ``tangent_tol`` reaches that one check: a velocity
+    tilted off the tangent space by 1e-7 of its size is refused by default (1e-9) and accepted at 1e-6."""
+    h0, v0 = _start()
+    calls = {"start_state": 0, "check_one_configuration": 0}
+    start_state, check = linkage.geometry.start_state, Chain.check_one_configuration
+
+    def counted_start_state(*args, **kwargs):
+        calls["start_state"] += 1
+        return start_state(*args, **kwargs)
+
+    def counted_check(self, *args, **kwargs):
+        calls["check_one_configuration"] += 1
+        return check(self, *args, **kwargs)
+
+    monkeypatch.setattr(linkage.geometry, "start_state", counted_start_state)
+    monkeypatch.setattr(Chain, "check_one_configuration", counted_check)
+    sensitivity(CHAIN, h0, v0, 0.1)
+    assert calls == {"start_state": 1, "check_one_configuration": 1}
+    x0 = CHAIN.to_point(h0)
+    normal = np.linalg.lstsq(HingeConstraints(CHAIN).jacobian(x0), np.ones(CHAIN.n), rcond=None)[0]  # G w != 0
+    tilted = v0 + 1e-7 * np.linalg.norm(CHAIN.to_point(v0)) * CHAIN.from_point(normal / np.linalg.norm(normal))
+    with pytest.raises(ValueError, match="velocity0 is not tangent"):
+        sensitivity(CHAIN, h0, tilted, 0.1)
+    with pytest.raises(ValueError, match="velocity0 is not tangent"):
+        sensitivity(CHAIN, h0, tilted, 0.1, tangent_tol=1e-8)
+    assert sensitivity(CHAIN, h0, tilted, 0.1, tangent_tol=1e-6).amplification[0] == pytest.approx(1.0, abs=1e-12)
