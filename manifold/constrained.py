@@ -583,6 +583,8 @@ class ConstrainedGeometry:
         self.speed_scale = speed_scale(system)
         self.K = as_fp(np.asarray(system.metric_matrix, dtype=float), fp_type)  # float64 entries: exact in fp_type
         self.system, self._compiled = system, comp
+        self._one_column = np.ascontiguousarray(self.pars[: self.cf.nparams, None])  # the parameters of a single row
+        self._max_steps = 3 + int(np.ceil(-np.log2(self.eps) / 50))  # Gauss-Newton steps of the projection, at most
 
     def __getstate__(self) -> dict:
         # the compiled store holds locks: a pickled geometry (a result shipped to a worker) rebuilds from its system
@@ -596,7 +598,8 @@ class ConstrainedGeometry:
         B = x.shape[0]
         r = np.zeros((B, self.m)) if r is None else r
         args = np.ascontiguousarray(as_fp(np.concatenate([x, v, r], axis=1).T, self.fp))
-        out = self.cf(args, pars=np.ascontiguousarray(np.repeat(self.pars[: self.cf.nparams, None], B, axis=1)))
+        pars = self._one_column if B == 1 else np.ascontiguousarray(np.repeat(self._one_column, B, axis=1))
+        out = self.cf(args, pars=pars)
         m, N = self.m, self.N
         return out[:m].T, out[m : 2 * m].T, out[2 * m : 2 * m + N].T, out[-1]
 
@@ -635,8 +638,7 @@ class ConstrainedGeometry:
     def _projected(self, x: NDArray, v: NDArray, c: NDArray, Gv: NDArray) -> tuple[NDArray, NDArray]:
         """:meth:`project` of rows ``x, v`` (the caller's copies, changed in place) given ``c`` and ``G v`` there."""
         active = np.arange(x.shape[0])
-        max_steps = 3 + int(np.ceil(-np.log2(self.eps) / 50))
-        for step in range(max_steps):
+        for step in range(self._max_steps):
             if step:
                 c = self(x[active], v[active])[0]
             moving = ~(np.max(np.abs(c.astype(float)), axis=1) <= ROUNDING_RESIDUAL * self.eps)
