@@ -370,7 +370,7 @@ def start_state(
     t_final = check_real("t_final", t_final, nonzero=True)
     tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
     system = HingeConstraints(chain)
-    x0, v0 = to_real(h0).astype(float), to_real(v0).astype(float)
+    x0, v0 = h0.view(float), v0.view(float)  # interleaved (x_1, y_1, ...): to_real of fresh complex128 vectors, no copy
     with np.errstate(over="ignore", invalid="ignore"):
         energy = 0.5 * v0 @ system.K @ v0
     if not np.isfinite(energy):
