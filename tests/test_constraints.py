@@ -6,7 +6,7 @@ from hypothesis import strategies as st
 from scipy.linalg import null_space
 
 from charts import SuspensionChart
-from linkage import Chain
+from linkage import Chain, rods
 from linkage.constraints import ChainSystem, HingeConstraints
 from manifold.constrained import ConstrainedGeometry
 
@@ -130,3 +130,24 @@ def test_the_compiled_rods_agree_with_numpys(case, spread):
     expected = sys.min_norm_correction(G, r)
     assert np.max(np.abs(correction[0] - expected)) < 1e-9 * max(1.0, float(np.max(np.abs(expected))))
     assert np.isclose(float(energy[0]), 0.5 * v @ sys.K @ v, rtol=1e-14)
+
+
+@given(systems(), st.floats(0.0, 0.3))
+def test_the_rod_formulas_are_the_rods_and_the_derivatives_of_the_constraints(case, spread):
+    """``linkage.rods`` against independent computations: the rods are the complex differences of the hinges
+    (``Chain.rods``), and since ``c(x + s v)`` is quadratic in ``s``, its first and second differences with step
+    1 are exactly ``G v`` and ``(dG/dt) v`` up to rounding."""
+    sys, x, rng = case
+    x = x + spread * rng.normal(size=x.size)
+    v = rng.normal(size=x.size)
+    e = rods.rod_vectors(list(x), sys.L)
+    assert np.allclose([complex(z.re, z.im) for z in e], sys.chain.rods(sys.chain.from_point(x)), rtol=0, atol=1e-15)
+    q = 1.0 / sys.lengths**2
+
+    def c(s: float) -> np.ndarray:
+        return np.array(rods.relative_residuals(rods.rod_vectors(list(x + s * v), sys.L), q, 1.0))
+
+    scale = max(1.0, float(np.max(np.abs(c(1.0)))), float(np.max(np.abs(c(-1.0)))))
+    rates = rods.rod_vectors(list(v), 0.0)
+    assert np.max(np.abs(rods.constraint_rates(e, rates, q) - (c(1.0) - c(-1.0)) / 2)) < 1e-14 * scale
+    assert np.max(np.abs(rods.velocity_terms(rates, q) - (c(1.0) - 2 * c(0.0) + c(-1.0)))) < 1e-14 * scale
