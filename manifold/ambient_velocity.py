@@ -37,9 +37,10 @@ scale-free), and vanishes on the exact solution.
 
 It is an equation term (:mod:`manifold.terms`): steppers take it as ``velocity=``
 (:class:`~manifold.steppers.TaylorStepper`, :class:`~manifold.sundman.SundmanStepper`).  Segments start and end in
-``(a, c)`` as every stepper's do: :meth:`ConstrainedVelocity.wrap` converts
-on the way in (``V = J c``) and on the way out, dense output included, so the
-engine, switches, energy checks and solutions are unchanged.
+``(a, c)`` as every stepper's do: its switch map converts on the way in (``V = J c``,
+:meth:`ConstrainedVelocity.enter`) and on the way out (:meth:`ConstrainedVelocity.leave`), dense output included, so
+the engine, switches, energy checks and solutions are unchanged; its parameter values (the system's, and ``gamma``
+at each segment's energy) it gives itself (:meth:`ConstrainedVelocity.parameter_values`).
 
 The same state carries :mod:`manifold.carried` terms along the chart geodesic
 (``carry=``): their slots are ambient (a transported vector ``W``, a Jacobi
@@ -65,8 +66,8 @@ from .constrained import (ConstrainedGeometry, ConstrainedPieces, ConstrainedSys
 from .geodesic_system import SymbolicPieces
 from .precision import as_fp
 from .solution import DenseOutput
-from .steppers import Advance, AdvanceFunction
-from .terms import StateTerm
+from .steppers import Advance
+from .terms import SegmentStart, StateTerm
 from .validation import check_real
 
 #: Damping rate of ``V``'s normal drift (:class:`ConstrainedVelocity`), chosen by measurement in ``docs/methods.md``.
@@ -77,7 +78,7 @@ class ConstrainedVelocity(StateTerm):
     """Integrate a chart family's geodesics in ``(a, V)``, the normal acceleration from ``system``.
 
     An equation term (:mod:`manifold.terms`) that sets the state: its parameters are the system's
-    runtime parameters, then the damping rate ``gamma``; its switch map (:meth:`wrap`) converts
+    runtime parameters, then the damping rate ``gamma``; its switch map (:meth:`enter`, :meth:`leave`) converts
     ``(a, c) <-> (a, V)`` at each segment's ends.
 
     Parameters
@@ -165,35 +166,39 @@ class ConstrainedVelocity(StateTerm):
             raise ValueError(f"form={form!r} is a form of the state (a, c); a stepper with velocity= integrates "
                              f"(a, J c) and has none: drop velocity= or form=")
 
-    def wrap(self, advance: AdvanceFunction, family: CompiledFamily, fp_type: Any) -> AdvanceFunction:
-        """An :data:`~manifold.steppers.AdvanceFunction` in ``(a, c)`` around ``advance``, which integrates ``(a, V)``.
+    @property
+    def moves_at_rest(self) -> bool:
+        """Whether the carried terms move while the geodesic stays at rest: with any carried, it is integrated."""
+        return bool(self.carry)
 
-        Each segment starts from ``(a, c)`` and converts once (switches go through the ambient velocity anyway),
-        and appends to the chart's parameters the system's and the damping rate ``gamma`` at the segment's energy.
-        """
-        k, N = family.family.dim, family.family.point_dim
-        geometry = ConstrainedGeometry(self.system, fp_type) if self.carry else None
+    def parameter_values(self, segment: SegmentStart) -> NDArray:
+        """The system's parameters, then the damping rate ``gamma`` at the segment's energy and length."""
+        gamma = damping_rate(self._speed_scale, self.rate, float(segment.energy), float(segment.t_final - segment.t))
+        return np.concatenate([self.parameters(segment.fp_type), as_fp([gamma], segment.fp_type)])
 
-        def run(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
-            transfer = Transfer(family, fp_type, pars)
-            start = transfer(y[:k, None], y[k : 2 * k, None], np.zeros((N, 1)))  # z, J c, ..., E
-            carried = y[2 * k :]
-            if geometry is not None and not carried.size:  # the first segment: the terms' start values
-                # in the ambient frame p = M z + m, v = M J c (the state's V is in the chart's frame, before M)
-                lay = family.layout
-                M = pars[lay.map_index : lay.map_index + N * N].reshape(N, N)
-                m = pars[lay.map_index + N * N : lay.map_index + N * N + N]
-                p, v = M @ start[:N, 0] + m, M @ start[N : 2 * N, 0]
-                carried = np.concatenate([term.start(geometry, p, v) for term in self.carry])
-            ambient = np.concatenate([y[:k], start[N : 2 * N, 0], carried])
-            gamma = damping_rate(self._speed_scale, self.rate, float(start[-1, 0]), float(t_final - t))
-            adv = advance(t, ambient, t_final, np.concatenate([pars, self.parameters(fp_type), as_fp([gamma], fp_type)]),
-                          dense)
-            out = None if adv.dense is None else _ChartDense(adv.dense, transfer)
-            return Advance(adv.t, _chart_states(adv.y[None, :], transfer)[0], adv.n_steps, adv.event, adv.step_times,
-                           _chart_states(adv.step_states, transfer), out, adv.failure)
+    def enter(self, segment: SegmentStart) -> NDArray:
+        """``(a, V)`` with ``V = J c`` at the segment's start (the conversion once per segment: switches go through
+        the ambient velocity anyway), then the carried slots: the loop's, or on the first segment the terms' start
+        values."""
+        k, N = segment.family.family.dim, segment.family.family.point_dim
+        y, start = segment.y, segment.start
+        carried = y[2 * k :]
+        if self.carry and not carried.size:  # the first segment: the terms' start values
+            # in the ambient frame p = M z + m, v = M J c (the state's V is in the chart's frame, before M)
+            lay, pars = segment.family.layout, segment.pars
+            M = pars[lay.map_index : lay.map_index + N * N].reshape(N, N)
+            m = pars[lay.map_index + N * N : lay.map_index + N * N + N]
+            p, v = M @ start[:N, 0] + m, M @ start[N : 2 * N, 0]
+            geometry = ConstrainedGeometry(self.system, segment.fp_type)
+            carried = np.concatenate([term.start(geometry, p, v) for term in self.carry])
+        return np.concatenate([y[:k], start[N : 2 * N, 0], carried])
 
-        return run
+    def leave(self, advance: Advance, segment: SegmentStart) -> Advance:
+        """The integrated ``(a, V)`` read back as ``(a, c)`` (:func:`_chart_states`), dense output included."""
+        transfer, adv = segment.transfer, advance
+        out = None if adv.dense is None else _ChartDense(adv.dense, transfer)
+        return Advance(adv.t, _chart_states(adv.y[None, :], transfer)[0], adv.n_steps, adv.event, adv.step_times,
+                       _chart_states(adv.step_states, transfer), out, adv.failure)
 
 
 def _chart_states(states: NDArray, transfer: Transfer) -> NDArray:

@@ -161,6 +161,27 @@ class CompiledFamily(ArtefactStore):
         """Compiled ``a -> z(a)``: the chart map alone (no Jacobian to compute and throw away)."""
         return self._cfunc(("point", fp_type), fp_type, lambda P: list(P.z), "a")
 
+    def composition(self, fp_type: Any, terms: Sequence[Term] | None = None) -> tuple[list[tuple], list[Event]]:
+        """The equations and terminal events of the composition ``terms`` (:mod:`manifold.terms`), built once.
+
+        ``terms``, in order: a :class:`~manifold.terms.StateTerm` first (default: ``ChartGeodesic()``, the state
+        ``(a, c)`` in the embedded form), each term's parameters after the previous one's from
+        :attr:`~manifold.geodesic_system.Layout.terms_index`, its events after the family's (the atlas loop reads
+        what each event index means here).
+        """
+        terms = _checked_terms(terms)
+
+        def build() -> tuple[list[tuple], list[Event]]:
+            P = self.pieces(fp_type)
+            equations: list[tuple] = []
+            events, offset = P.events(), self.layout.terms_index
+            for term in terms:
+                equations = term.equations(P, equations, offset)
+                events += term.events(equations, offset)
+                offset += term.n_params
+            return equations, events
+        return self._get(("composition", fp_type, tuple(t.key for t in terms)), build)
+
     @contextmanager
     def integrator(self, fp_type: Any = float, tol: float | None = None, terms: Sequence[Term] | None = None,
                    backward: bool = False, compact_mode: bool = True,
@@ -170,36 +191,28 @@ class CompiledFamily(ArtefactStore):
         The caller owns it inside the ``with`` block: set ``state``, ``time``
         and ``pars`` (:attr:`ChartNumerics.pars`, then each term's parameters) before each use.
         ``tol=None`` is :func:`default_tolerance` (1e-14 in float64, the
-        machine epsilon of other types).  ``terms`` (:mod:`manifold.terms`) compose the equations, in
-        order: a :class:`~manifold.terms.StateTerm` first (default: ``ChartGeodesic()``, the state ``(a, c)``
-        in the embedded form), each term's parameters after the previous one's from
-        :attr:`~manifold.geodesic_system.Layout.terms_index`, its events after the family's.
-        ``backward=True`` mirrors the event directions for negative times.  ``compact_mode`` and ``opt_level``
-        (LLVM's optimisation level, 0..3) are heyoka's compile options; each
+        machine epsilon of other types).  ``terms`` (:mod:`manifold.terms`) compose the equations
+        (:meth:`composition`).  ``backward=True`` mirrors the event directions for negative times.
+        ``compact_mode`` and ``opt_level`` (LLVM's optimisation level, 0..3) are heyoka's compile options; each
         combination is a separate integrator.
         """
-        terms = (ChartGeodesic(),) if terms is None else tuple(terms)
-        if not terms or not isinstance(terms[0], StateTerm) or not all(
-                isinstance(t, Term) and not isinstance(t, StateTerm) for t in terms[1:]):
-            raise TypeError(f"terms must be a manifold.terms.StateTerm followed by other Terms, got {terms!r}")
+        terms = _checked_terms(terms)
         tol = default_tolerance(fp_type) if tol is None else tol
         key = ("integrator", fp_type, tol, backward, compact_mode, opt_level, tuple(t.key for t in terms))
 
         def build() -> Any:
-            P = self.pieces(fp_type)
             kw = {} if tol is None else {"tol": fp_type(tol)}
-            equations: list[tuple] = []
-            events, offset = P.events(), self.layout.terms_index
-            for term in terms:
-                equations = term.equations(P, equations, offset)
-                events += term.events(equations)
-                offset += term.n_params
+            equations, events = self.composition(fp_type, terms)
             return hy.taylor_adaptive(equations, as_fp(np.zeros(len(equations)), fp_type), compact_mode=compact_mode,
                                       opt_level=opt_level, t_events=heyoka_events(events, backward, fp_type), **kw,
                                       **heyoka_fp_kwargs(fp_type))
 
         with self._lend(key, build) as ta:
             yield ta
+
+    def transfer_at(self, fp_type: Any, pars: NDArray) -> Transfer:
+        """The compiled :meth:`transfer` at one chart's parameters ``pars`` (:class:`Transfer`)."""
+        return Transfer(self, fp_type, pars)
 
     def evaluate_inverse(self, theta: ArrayLike, z: ArrayLike) -> tuple[NDArray, NDArray]:
         """Approximate parameters ``a(z)`` (``(..., k)``) and the quality there (``(...)``), float64, batched.
@@ -259,6 +272,15 @@ def _batched(cf: Any, a: NDArray, theta: ArrayLike) -> NDArray:
     else:
         pars = np.ascontiguousarray(np.broadcast_to(theta, (*lead, theta.shape[-1])).reshape(flat.shape[1], theta.shape[-1]).T)
     return cf(flat, pars=pars).T.reshape(*lead, -1)
+
+
+def _checked_terms(terms: Sequence[Term] | None) -> tuple[Term, ...]:
+    """``terms`` as a tuple (default: ``ChartGeodesic()``), refused unless a state term comes first and only there."""
+    terms = (ChartGeodesic(),) if terms is None else tuple(terms)
+    if not terms or not isinstance(terms[0], StateTerm) or not all(
+            isinstance(t, Term) and not isinstance(t, StateTerm) for t in terms[1:]):
+        raise TypeError(f"terms must be a manifold.terms.StateTerm followed by other Terms, got {terms!r}")
+    return terms
 
 
 _REGISTRY: dict[Hashable, CompiledFamily] = {}

@@ -62,7 +62,8 @@ class Event:
         :data:`FALLING`, :data:`RISING` or :data:`EITHER`: the sign of ``dg/dt`` along the motion (module docstring).
     kind
         :data:`SWITCH` (change chart), :data:`WRAP` (add ``shift * 2 pi`` to the periodic parameter
-        ``parameter``, same chart) or :data:`STOP` (the segment's end, Sundman's time).
+        ``parameter``, same chart) or :data:`STOP` (the solve ends there, successfully: Sundman's time reaching
+        ``t_final``, or any term's own end of the motion; the message says where if before ``t_final``).
     parameter, shift
         For a wrap: the index of the periodic parameter and the sign of the ``2 pi`` added.
     """

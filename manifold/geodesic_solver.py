@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .budget import DEFAULT_BUDGET, Budget, spending, spent_message
 from .compiled import compiled
-from .events import WRAP
+from .events import STOP, WRAP
 from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible, settled
 from .metric import InducedMetric
 from .options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
@@ -164,7 +164,7 @@ def solve_chart_exp_ode(
     atlas, num, k = metric.atlas, sol.chart_numerics, metric.atlas.dim
     energy_tol = stepper.relative_tolerance(fp_type)
     family = compiled(atlas.charts[0].family)
-    events = family.events()  # what each event index means: a switch or a wrap (manifold.events)
+    events = stepper.events(family, fp_type, form)  # what each event index means: switch, wrap, stop (manifold.events)
     two_pi = 8 * np.arctan(as_fp(1.0, fp_type))  # 2 pi exact to fp_type
     backward = t_end < 0
     sign = -1.0 if backward else 1.0
@@ -178,9 +178,7 @@ def solve_chart_exp_ode(
         carried = np.zeros(0, dtype=a.dtype)  # what a stepper carries after (a, c): ambient, the same in every chart
         if switching and float(atlas.charts[i].quality(a.astype(float))) < q_event:
             i, a, c = _switch(sol, i, a, c, t, q_event)  # its event would never fire: it starts past it
-        # a stepper that carries terms (a Jacobi field moves even at rest) integrates as usual
-        carrying = isinstance(stepper, TaylorStepper) and stepper.velocity is not None and bool(stepper.velocity.carry)
-        rest = resting and not carrying
+        rest = resting and not stepper.moves_at_rest(form)  # a Jacobi field carried moves even at rest
         if rest:
             # the geodesic is the start to the working precision; a stepper would see no scale of time at all
             # (Sundman's time ran to |tau| = 1e30 without moving, and raised)
@@ -217,6 +215,10 @@ def solve_chart_exp_ode(
                     status, message = SolveStatus.STEPPER_FAILED, f"integration failed at t = {t}: {adv.failure} (chart {atlas.ids[i]})"
                 break
             event = events[adv.event]
+            if event.kind == STOP:  # a term's stop: Sundman's clock reached t_final, or a term's own end of the motion
+                if t != t_end:
+                    message = f"stopped at t = {t} by a stop event (chart {atlas.ids[i]})"
+                break
             if event.kind == WRAP:  # a periodic parameter left [-pi, pi]: wrap it, same chart
                 a[event.parameter] += two_pi if event.shift > 0 else -two_pi
                 n_wraps += 1

@@ -24,7 +24,7 @@ Two kinds of stepper:
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
@@ -37,12 +37,12 @@ from scipy.integrate import OdeSolution
 
 from .budget import allowance, dense_bytes_per_step, spend
 from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
-from .events import first_crossing
+from .events import Event, first_crossing
 from .interrupt import propagate_until
 from .precision import is_double, unit_roundoff
 from .progress import step_callback
 from .solution import CallableDense, DenseOutput, PointDense, SecondOrderDense, TaylorDense
-from .terms import ChartGeodesic, StateTerm
+from .terms import ChartGeodesic, Clock, SegmentStart, StateTerm, Term
 from .validation import check_bool, check_index, check_real
 
 #: Largest accepted tolerance: looser runs are not geodesics (``tol = 1`` gave a 21 % energy error).
@@ -98,9 +98,19 @@ class Stepper(ABC):
                 switching: bool) -> Any:
         """Context manager yielding an :data:`AdvanceFunction` private to one solve."""
 
+    def events(self, family: CompiledFamily, fp_type: Any, form: str) -> list[Event]:
+        """The terminal events that its :attr:`Advance.event` indexes (default: the family's,
+        :func:`~manifold.events.chart_events`); the atlas loop acts on each by its kind."""
+        return family.events()
+
+    def moves_at_rest(self, form: str) -> bool:
+        """Whether anything it integrates changes while the geodesic stays at its start (default: no; then the loop
+        does not integrate a start at rest)."""
+        return False
+
 
 class TaylorStepper(Stepper):
-    """heyoka's adaptive Taylor method with event detection (any precision).
+    """heyoka's adaptive Taylor method with event detection (any precision), on a composition of equation terms.
 
     Parameters
     ----------
@@ -122,12 +132,17 @@ class TaylorStepper(Stepper):
         state is ``(a, J c)`` and constraints give the acceleration, without
         the chart's second derivatives (a ``form`` other than ``"embedded"`` is then refused).  Any other
         :class:`~manifold.terms.StateTerm` sets the state the same way.
+    terms
+        The further equation terms (:class:`~manifold.terms.Term`, not state terms), composed after the state's in
+        this order; at most one :class:`~manifold.terms.Clock` (:class:`manifold.sundman.SundmanTime`), which then
+        runs each segment.  Every term's parameter values are asked of it at each segment's start
+        (:meth:`~manifold.terms.Term.parameter_values`), its events acted on by the loop.
     """
 
     name = "taylor"
 
     def __init__(self, tol: float | None = None, *, compact_mode: bool = True,
-                 opt_level: int = DEFAULT_OPT_LEVEL, velocity: Any = None) -> None:
+                 opt_level: int = DEFAULT_OPT_LEVEL, velocity: Any = None, terms: Sequence[Term] = ()) -> None:
         self.tol = None if tol is None else check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
         self.compact_mode = check_bool("compact_mode", compact_mode)
         self.opt_level = check_index("opt_level", opt_level, 4)
@@ -135,8 +150,16 @@ class TaylorStepper(Stepper):
             raise TypeError(f"velocity must be None or a manifold.ambient_velocity.ConstrainedVelocity instance "
                             f"(a manifold.terms.StateTerm), got {velocity!r}")
         self.velocity = velocity
+        self.terms = tuple(terms)
+        if not all(isinstance(term, Term) and not isinstance(term, StateTerm) for term in self.terms):
+            raise TypeError(f"terms must hold manifold.terms.Term objects that are not state terms (give a state term "
+                            f"as velocity=), got {self.terms!r}")
+        clocks = [term for term in self.terms if isinstance(term, Clock)]
+        if len(clocks) > 1:
+            raise ValueError(f"terms may hold at most one Clock (one independent variable), got {clocks!r}")
+        self.clock: Clock | None = clocks[0] if clocks else None
         if velocity is not None:
-            self.name = f"{type(self).name} (a, J c)"  # the solution's method says which state was integrated
+            self.name = f"{self.name} (a, J c)"  # the solution's method says which state was integrated
 
     def relative_tolerance(self, fp_type: Any) -> float:
         # The default tolerance is chosen to be as accurate as the machine epsilon, and is held to that: judged by
@@ -145,7 +168,9 @@ class TaylorStepper(Stepper):
 
     def __repr__(self) -> str:
         velocity = "" if self.velocity is None else f", velocity={self.velocity!r}"
-        return f"TaylorStepper(tol={self.tol!r}, compact_mode={self.compact_mode}, opt_level={self.opt_level}{velocity})"
+        terms = f", terms={self.terms!r}" if self.terms else ""
+        return (f"TaylorStepper(tol={self.tol!r}, compact_mode={self.compact_mode}, opt_level={self.opt_level}"
+                f"{velocity}{terms})")
 
     def state(self, family: CompiledFamily, form: str) -> StateTerm:
         """The term that sets the integrated state: ``velocity``, or the chart geodesic in ``form``; checked."""
@@ -153,13 +178,48 @@ class TaylorStepper(Stepper):
         state.check(family, form)
         return state
 
+    def composition(self, family: CompiledFamily, form: str) -> tuple[Term, ...]:
+        """The terms it integrates: the state's, then :attr:`terms`, each checked against ``family``."""
+        for term in self.terms:
+            term.check(family, form)
+        return (self.state(family, form), *self.terms)
+
+    def events(self, family: CompiledFamily, fp_type: Any, form: str) -> list[Event]:
+        return family.composition(fp_type, self.composition(family, form))[1]
+
+    def moves_at_rest(self, form: str) -> bool:
+        state = ChartGeodesic(form) if self.velocity is None else self.velocity
+        return any(term.moves_at_rest for term in (state, *self.terms))
+
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
                 switching: bool) -> Iterator[AdvanceFunction]:
-        state = self.state(family, form)
-        with family.integrator(fp_type, self.tol, (state,), backward, self.compact_mode, self.opt_level) as ta:
-            yield state.wrap(lambda t, y, t_final, pars, dense: taylor_advance(ta, t, y, t_final, pars, dense, fp_type),
-                             family, fp_type)
+        terms = self.composition(family, form)
+        state, clock = self.state(family, form), self.clock
+        offsets = np.cumsum([family.layout.terms_index] + [term.n_params for term in terms])
+        with family.integrator(fp_type, self.tol, terms, backward, self.compact_mode, self.opt_level) as ta:
+            def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
+                segment = SegmentStart(family, fp_type, t, y, t_final, pars)
+                y_in = state.enter(segment)
+                if t_final == t:  # nothing to integrate (a switch or wrap event can end a segment exactly at t_final)
+                    return state.leave(Advance(t, y_in, 0, None, np.array([t]), y_in[None, :],
+                                               PointDense(y_in) if dense else None), segment)
+                values = np.concatenate([pars] + [parameter_values(term, segment) for term in terms])
+                if clock is None:
+                    adv = taylor_advance(ta, t, y_in, t_final, values, dense, fp_type)
+                else:
+                    adv = clock.advance(ta, segment, y_in, values, int(offsets[terms.index(clock)]), dense)
+                return state.leave(adv, segment)
+
+            yield advance
+
+
+def parameter_values(term: Term, segment: SegmentStart) -> NDArray:
+    """``term``'s parameter values at ``segment``, refused unless there are as many as it declares."""
+    values = term.parameter_values(segment)
+    if len(values) != term.n_params:
+        raise ValueError(f"{term!r} declares n_params = {term.n_params} but its parameter_values gave {len(values)}")
+    return values
 
 
 def taylor_relative_tolerance(tol: float | None, fp_type: Any) -> float:

@@ -15,10 +15,11 @@ gains little.  The factor is a :class:`TimeFactor` of the ambient point
 ``p = M z(a) + m`` (each chart's own map, passed as runtime parameters), so
 nothing here knows what the constraints are.
 
-:class:`SundmanStepper` plugs into the atlas loop like any stepper: each
+:class:`SundmanTime` is an equation term (:mod:`manifold.terms`) and a clock: composed after the state's in
+a :class:`~manifold.steppers.TaylorStepper` (:class:`SundmanStepper` is that stepper), each
 segment runs in ``tau`` from 0 until the segment's time
-``u = (t - t_start) / (t_final - t_start)`` reaches 1 (an event) or a switch event
-fires, and reports physical times (``u`` restarts from the time reached every
+``u = (t - t_start) / (t_final - t_start)`` reaches 1 (its stop event, on which the loop ends the solve) or a
+switch event fires, and reports physical times (``u`` restarts from the time reached every
 :data:`RESTART_STEPS` steps: ``t = origin + (t_final - origin) u``).  Its dense
 output (:class:`SundmanDense`) finds ``tau`` for a requested ``t`` by Newton's
 method on the step's polynomial ``u(tau)``, monotone in ``tau``.
@@ -27,8 +28,7 @@ method on the step's polynomial ``u(tau)``, monotone in ``tau``.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Hashable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Hashable, Sequence
 from types import SimpleNamespace
 from typing import Any
 
@@ -45,7 +45,7 @@ from .precision import as_fp, unit_roundoff
 from .progress import step_callback
 from .solution import DenseOutput, PointDense, TaylorDense, polynomial_values
 from .steppers import Advance, TaylorStepper, terminal_event
-from .terms import Term
+from .terms import Clock, SegmentStart
 
 #: Bound on ``|tau|`` of one segment; the segment ends by its ``u = 1`` event long before (``tau`` is about
 #: ``t / s``, and ``s`` stays positive on the manifold).
@@ -87,18 +87,21 @@ class TimeFactor(ABC):
         """The values of ``kappa`` (float64, ``n_params``)."""
 
 
-class SundmanTime(Term):
+class SundmanTime(Clock):
     """Sundman's time as an equation term (:mod:`manifold.terms`): the right-hand sides times ``s(p)``, the segment's
     time ``u`` as one more state slot, and its stop event ``u = 1`` (:func:`manifold.events.stop_event`).
 
-    Its parameters: ``1 / (t_final - origin)``, then the factor's (:meth:`~manifold.geodesic_system.SymbolicPieces.sundman_equations`).
-    Its switch map: ``u`` starts at 0 on every segment (:func:`sundman_advance`).
+    Its parameters: ``1 / (t_final - origin)``, then the factor's (:meth:`~manifold.geodesic_system.SymbolicPieces.sundman_equations`),
+    their values given at each segment's start (:meth:`parameter_values`).  A :class:`~manifold.terms.Clock`: it runs
+    each segment in ``tau`` (:func:`sundman_advance`: ``u`` starts at 0 and restarts every :data:`RESTART_STEPS`
+    steps), reporting physical times.
     """
 
     def __init__(self, factor: TimeFactor) -> None:
         if not isinstance(factor, TimeFactor):
             raise TypeError(f"factor must be a manifold.sundman.TimeFactor, got {type(factor).__name__}")
         self.factor = factor
+        self._kappa: dict[Any, NDArray] = {}  # fp_type -> the factor's parameter values
 
     def __repr__(self) -> str:
         return f"SundmanTime({self.factor!r})"
@@ -114,8 +117,32 @@ class SundmanTime(Term):
     def equations(self, pieces: SymbolicPieces, equations: list[tuple], offset: int) -> list[tuple]:
         return pieces.sundman_equations(self.factor, equations, offset)
 
-    def events(self, equations: list[tuple]) -> list[Event]:
+    def events(self, equations: list[tuple], offset: int) -> list[Event]:
         return [stop_event(equations[-1][0])]
+
+    def check(self, family: CompiledFamily, form: str) -> None:
+        """Refuse a factor of points of another dimension than the family's."""
+        if self.factor.ambient_dim != family.family.point_dim:
+            raise ValueError(f"factor: {self.factor!r} takes points of R^{self.factor.ambient_dim}, the charts of "
+                             f"{family.family!r} give points of R^{family.family.point_dim}")
+
+    def parameter_values(self, segment: SegmentStart) -> NDArray:
+        """``1 / (t_final - t)`` (the segment's span, from its start) and the factor's ``kappa``."""
+        fp = segment.fp_type
+        if fp not in self._kappa:
+            self._kappa[fp] = as_fp(self.factor.parameters(), fp)
+        return np.concatenate([as_fp([1.0], fp) / (segment.t_final - segment.t), self._kappa[fp]])
+
+    def advance(self, ta: Any, segment: SegmentStart, y: NDArray, pars: NDArray, offset: int,
+                dense: bool) -> Advance:
+        return sundman_advance(ta, segment.t, y, segment.t_final, pars, dense, segment.fp_type, offset)
+
+    def __getstate__(self) -> dict:
+        """Pickle the factor only (the cached values are rebuilt)."""
+        return {"factor": self.factor}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["factor"])  # type: ignore[misc]
 
 
 class SundmanDense:
@@ -165,13 +192,15 @@ class SundmanDense:
         return self.tau_dense.at(s, h)[:, :-1]
 
 
-def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, factor_pars: NDArray,
-                    dense: bool, fp_type: Any, span_index: int) -> Advance:
-    """Run the Sundman integrator ``ta`` of the chart from ``(t, y)`` to ``t_final`` or its first switch event.
+def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool, fp_type: Any,
+                    span_index: int) -> Advance:
+    """Run the Sundman integrator ``ta`` of the chart from ``(t, y)`` (``t != t_final``) to ``t_final`` or its first
+    switch event.
 
-    ``pars`` are the chart's (:attr:`~manifold.compiled.ChartNumerics.pars`) and the state term's, up to
-    ``span_index`` (:class:`SundmanTime`'s first parameter), ``factor_pars`` the time factor's.  Times in the result are physical; a segment that reaches
-    ``t_final`` ends exactly there (its ``u = 1`` event, located by heyoka to a rounding).
+    ``pars`` are every parameter of the composition (the chart's, each term's), :class:`SundmanTime`'s first,
+    the span ``1 / (t_final - t)``, at ``span_index``.  Times in the result are physical; a segment that reaches
+    ``t_final`` ends exactly there, reporting its stop event (``u = 1``, located by heyoka to a rounding; the last of
+    the composition's), on which the atlas loop ends the solve.
 
     Numerical trap: ``u`` is a state variable, so each step rounds it by ``eps |u|``, and ``t`` by
     ``eps |u (t_final - t_start)|``; over a long segment that would pile up to ``eps`` times the
@@ -183,13 +212,9 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
     that vanishes on the path would stop ``t``: a restart that finds the time unmoved ends the segment as
     a failure instead of looping.
     """
-    if t_final == t:  # nothing to integrate (a switch or wrap event can end a segment exactly at t_final)
-        return Advance(t, y, 0, None, np.array([t]), y[None, :], PointDense(y) if dense else None)
     ta.state[:] = np.append(y, fp_type(0.0))
     ta.time = fp_type(0.0)
-    if len(pars) != span_index:
-        raise ValueError(f"Sundman's time reads its span at par[{span_index}], after {len(pars)} parameters")
-    ta.pars[:] = np.concatenate([pars, as_fp([1.0], fp_type) / (t_final - t), factor_pars])[: len(ta.pars)]
+    ta.pars[:] = pars[: len(ta.pars)]
     ta.reset_cooldowns()
     progress = step_callback()
     n_events, forward = len(ta.t_events), float(t_final - t) > 0  # dt/dtau > 0: tau runs with t
@@ -232,8 +257,8 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
         failure = f"Sundman time stalled at t = {clock['now']}: the time factor vanished on the path"
     else:
         event, failure = terminal_event(outcome, n_events)
-        if event == n_events - 1:  # u = 1: t_final reached
-            event, t_end = None, t_final
+        if event == n_events - 1:  # u = 1: t_final reached, exactly
+            t_end = t_final
     if failure is not None:
         t_end = clock["now"]  # the last step's end, not a failed step's (heyoka keeps the state before it)
     out: DenseOutput | None = None
@@ -252,7 +277,8 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, fa
 
 
 class SundmanStepper(TaylorStepper):
-    """heyoka's Taylor method in Sundman's time ``dt = s(p) dtau`` (see the module docstring).
+    """heyoka's Taylor method in Sundman's time ``dt = s(p) dtau`` (see the module docstring): a
+    :class:`~manifold.steppers.TaylorStepper` with the term :class:`SundmanTime` composed after the state's.
 
     Parameters
     ----------
@@ -265,27 +291,10 @@ class SundmanStepper(TaylorStepper):
     name = "taylor-sundman"
 
     def __init__(self, factor: TimeFactor, tol: float | None = None, **options: Any) -> None:
-        self.time = SundmanTime(factor)  # refuses anything but a TimeFactor
-        super().__init__(tol, **options)
+        super().__init__(tol, terms=(SundmanTime(factor),), **options)  # SundmanTime refuses anything but a TimeFactor
         self.factor = factor
 
     def __repr__(self) -> str:
         velocity = "" if self.velocity is None else f", velocity={self.velocity!r}"
         return (f"SundmanStepper({self.factor!r}, tol={self.tol!r}, compact_mode={self.compact_mode}, "
                 f"opt_level={self.opt_level}{velocity})")
-
-    @contextmanager
-    def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
-                switching: bool) -> Iterator[Any]:
-        if self.factor.ambient_dim != family.family.point_dim:
-            raise ValueError(f"factor: {self.factor!r} takes points of R^{self.factor.ambient_dim}, the charts of "
-                             f"{family.family!r} give points of R^{family.family.point_dim}")
-        state = self.state(family, form)
-        kappa = as_fp(self.factor.parameters(), fp_type)
-        span_index = family.layout.terms_index + state.n_params  # Sundman's parameters follow the state term's
-        with family.integrator(fp_type, self.tol, (state, self.time), backward, self.compact_mode,
-                               self.opt_level) as ta:
-            def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
-                return sundman_advance(ta, t, y, t_final, pars, kappa, dense, fp_type, span_index)
-
-            yield state.wrap(advance, family, fp_type)

@@ -10,28 +10,89 @@ empty system.  Each term declares
   right-hand sides, as it multiplies them by ``s(p)``);
 * its **runtime parameters**: :attr:`Term.n_params` values at
   ``par[offset ..]``, the blocks allotted in the order of the terms after the
-  chart's own (:attr:`~manifold.geodesic_system.Layout.terms_index`);
+  chart's own (:attr:`~manifold.geodesic_system.Layout.terms_index`), and their
+  values at each segment's start (:meth:`Term.parameter_values` of a
+  :class:`SegmentStart`), which the stepper asks of every term of its composition;
 * its **events** (:meth:`Term.events`), after the family's switch and wrap
-  events (:mod:`manifold.events`);
+  events (:mod:`manifold.events`); the atlas loop acts on each by its kind
+  (a :data:`~manifold.events.STOP` ends the solve);
 * its **switch map**: how the atlas loop's state ``(a, c)`` maps to the term's
-  state at each segment's start and back at its end
-  (:meth:`StateTerm.wrap`; the chart switch itself acts on ``(a, c)``).
+  state at each segment's start (:meth:`StateTerm.enter`) and back at its end
+  (:meth:`StateTerm.leave`; the chart switch itself acts on ``(a, c)``), and
+  whether that state changes while the geodesic stays at rest
+  (:attr:`Term.moves_at_rest`: then a start at rest is integrated all the same).
 
-The terms: :class:`ChartGeodesic` (the state ``(a, c)``, the default),
+A term that changes the independent variable, as Sundman's time does, is a
+:class:`Clock`: it runs the integrator over a segment itself and reports physical
+times.  The terms: :class:`ChartGeodesic` (the state ``(a, c)``, the default),
 :class:`manifold.ambient_velocity.ConstrainedVelocity` (the state ``(a, J c)``,
 with :mod:`manifold.carried` terms after it) and
-:class:`manifold.sundman.SundmanTime` (Sundman's time).  A new term is a
-subclass in its own file, passed by the stepper that integrates it.
+:class:`manifold.sundman.SundmanTime` (Sundman's time, a :class:`Clock`).  A new
+term is a subclass in its own file, passed to
+:class:`~manifold.steppers.TaylorStepper` (``velocity=`` for a state term,
+``terms=`` for the others).
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Hashable
-from typing import Any
+from collections.abc import Hashable
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
 
 from .events import Event
 from .geodesic_system import FORMS, SymbolicPieces
+
+if TYPE_CHECKING:
+    from .compiled import CompiledFamily, Transfer
+    from .steppers import Advance
+
+
+@dataclass
+class SegmentStart:
+    """One segment's start, in the atlas loop's terms: what a term's parameter values and switch map may read.
+
+    Attributes
+    ----------
+    family
+        The :class:`~manifold.compiled.CompiledFamily` integrated.
+    fp_type
+        The working precision.
+    t, t_final
+        The segment's start time and the solve's final time.
+    y
+        The loop's state ``(a, c)``, then anything carried after it (ambient slots, unchanged at switches).
+    pars
+        The active chart's runtime parameters (:attr:`~manifold.compiled.ChartNumerics.pars`).
+    """
+
+    family: CompiledFamily
+    fp_type: Any
+    t: Any
+    y: NDArray
+    t_final: Any
+    pars: NDArray
+
+    @cached_property
+    def transfer(self) -> Transfer:
+        """The family's transfer at the chart's parameters (:class:`~manifold.compiled.Transfer`)."""
+        return self.family.transfer_at(self.fp_type, self.pars)
+
+    @cached_property
+    def start(self) -> NDArray:
+        """The transfer's outputs at ``(a, c)`` (one column): ``z``, ``J c``, the tangent coefficients of 0 and the
+        kinetic energy ``E = 1/2 c^T g c`` (computed once per segment, whoever asks first)."""
+        k, N = self.family.family.dim, self.family.family.point_dim
+        return self.transfer(self.y[:k, None], self.y[k : 2 * k, None], np.zeros((N, 1)))
+
+    @property
+    def energy(self) -> Any:
+        """The kinetic energy at the segment's start, in the working precision."""
+        return self.start[-1, 0]
 
 
 class Term(ABC):
@@ -52,26 +113,59 @@ class Term(ABC):
         """The system ``equations`` (pairs ``(variable, right-hand side)``, empty for the first term) with this term
         applied; its parameters are ``par[offset .. offset + n_params - 1]``."""
 
-    def events(self, equations: list[tuple]) -> list[Event]:
-        """Its terminal events, on the composed ``equations`` (none by default), numbered after the family's.
+    def events(self, equations: list[tuple], offset: int) -> list[Event]:
+        """Its terminal events, on the composed ``equations`` and its parameters ``par[offset ..]`` (none by
+        default), numbered after the family's.
 
-        The atlas loop acts on the family's switch and wrap events; a term's own are acted on by the stepper
-        that integrates it (Sundman's stop ends the segment at ``t_final``: :func:`manifold.sundman.sundman_advance`).
+        The atlas loop acts on every event by its :attr:`~manifold.events.Event.kind`, the family's and the
+        terms' alike (Sundman's stop, a :data:`~manifold.events.STOP`, ends the solve at ``t_final``).
         """
         return []
+
+    def check(self, family: CompiledFamily, form: str) -> None:
+        """Refuse a compiled family or a ``form`` of the state ``(a, c)`` that it cannot be composed with (default:
+        none refused)."""
+
+    def parameter_values(self, segment: SegmentStart) -> NDArray:
+        """The values of its :attr:`n_params` runtime parameters for the segment starting at ``segment``, in
+        ``segment.fp_type`` (none by default).  The stepper asks every term of its composition at each segment's
+        start and appends the values, in the order of the terms, to the chart's parameters."""
+        return np.zeros(0, dtype=segment.y.dtype)
+
+    @property
+    def moves_at_rest(self) -> bool:
+        """Whether its slots change while the geodesic stays at its start (a Jacobi field does); if no term of a
+        composition does, a start at rest is not integrated (the solution is the start)."""
+        return False
 
 
 class StateTerm(Term):
     """The first term of a composition: it sets the state the integrator carries."""
 
     @abstractmethod
-    def check(self, family: Any, form: str) -> None:
-        """Refuse a compiled family (:class:`~manifold.compiled.CompiledFamily`) or a ``form`` it cannot integrate."""
+    def check(self, family: CompiledFamily, form: str) -> None:
+        """Refuse a compiled family or a ``form`` it cannot integrate."""
+
+    def enter(self, segment: SegmentStart) -> NDArray:
+        """Its switch map on the way in: the integrated state at the segment's start, from the loop's
+        ``segment.y`` (default: the loop's state is its own)."""
+        return segment.y
+
+    def leave(self, advance: Advance, segment: SegmentStart) -> Advance:
+        """Its switch map on the way out: the stepper's :class:`~manifold.steppers.Advance` in the integrated state,
+        read back in the loop's ``(a, c)`` (states, end and dense output; default: unchanged)."""
+        return advance
+
+
+class Clock(Term):
+    """A term that changes the independent variable (Sundman's time): it runs the integrator over a segment."""
 
     @abstractmethod
-    def wrap(self, advance: Callable, family: Any, fp_type: Any) -> Callable:
-        """Its switch map: an :data:`~manifold.steppers.AdvanceFunction` in the loop's ``(a, c)`` around ``advance``,
-        which integrates this term's state, its parameters' values appended to the chart's."""
+    def advance(self, ta: Any, segment: SegmentStart, y: NDArray, pars: NDArray, offset: int,
+                dense: bool) -> Advance:
+        """Run heyoka's integrator ``ta`` (its parameters ``pars``, this term's at ``pars[offset ..]``) from the
+        integrated state ``y`` at ``segment.t`` to ``segment.t_final`` or the first event, in physical times: an
+        :class:`~manifold.steppers.Advance` whose ``event`` indexes the composed events."""
 
 
 class ChartGeodesic(StateTerm):
@@ -99,9 +193,6 @@ class ChartGeodesic(StateTerm):
             raise ValueError(f"{self!r} sets the state: it must be the first term")
         return pieces.equations(self.form)
 
-    def check(self, family: Any, form: str) -> None:
+    def check(self, family: CompiledFamily, form: str) -> None:
         if form != self.form:
             raise ValueError(f"form={form!r} asked of {self!r}")
-
-    def wrap(self, advance: Callable, family: Any, fp_type: Any) -> Callable:
-        return advance

@@ -14,13 +14,15 @@ import pytest
 from linkage import Chain
 from linkage.constraints import ChainSystem
 from linkage.time_factor import ChainTimeFactor
-from manifold import compiled
+from manifold import compiled, solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
-from manifold.events import RISING, Event
-from manifold.sundman import SundmanTime
+from manifold.events import EITHER, RISING, STOP, Event
+from manifold.solution import SolveStatus
+from manifold.steppers import TaylorStepper
+from manifold.sundman import SundmanStepper, SundmanTime
 from manifold.terms import ChartGeodesic, Term
 
-from .sphere_family import sphere_metric
+from .sphere_family import great_circle, sphere_metric
 
 
 class ScaledTime(Term):
@@ -33,8 +35,17 @@ class ScaledTime(Term):
         w = hy.expression("clock")
         return [(lhs, hy.par[offset] * rhs) for lhs, rhs in equations] + [(w, hy.expression(1.0))]
 
-    def events(self, equations):
+    def events(self, equations, offset):
         return [Event(equations[-1][0] - 1.0, RISING, "stop")]
+
+
+def _unit_sphere_start():
+    rng = np.random.default_rng(0)
+    p0 = rng.normal(size=3)
+    p0 /= np.linalg.norm(p0)
+    v0 = rng.normal(size=3)
+    v0 -= (v0 @ p0) * p0
+    return p0, v0 / np.linalg.norm(v0) * 1.3
 
 
 def _sphere_state():
@@ -94,3 +105,85 @@ def test_a_composition_without_one_state_term_first_is_refused(terms):
 def test_a_bad_form_is_refused_by_name():
     with pytest.raises(ValueError, match="form must be one of"):
         ChartGeodesic("hamiltonian")
+
+
+class Deadline(Term):
+    """Ends the motion at the time ``at``: one parameter, whose value the term gives itself at every segment's start,
+    and a stop event ``t - par[offset]`` (either direction: forward and backward runs)."""
+
+    n_params = 1
+
+    def __init__(self, at):
+        self.at = at
+        self.asked = 0
+
+    @property
+    def key(self):
+        return "deadline"
+
+    def equations(self, pieces, equations, offset):
+        return equations
+
+    def events(self, equations, offset):
+        return [Event(hy.time - hy.par[offset], EITHER, STOP)]
+
+    def parameter_values(self, segment):
+        self.asked += 1
+        return np.array([self.at], dtype=segment.y.dtype)
+
+
+@pytest.mark.parametrize("T, at", [(20.0, 7.3), (-20.0, -7.3)])
+def test_a_term_gives_its_parameter_values_and_the_loop_acts_on_its_stop_event(T, at):
+    """No stepper of its own: the Taylor stepper asks the term for its parameter at every segment (chart switches
+    before the deadline), and the loop ends the solve at its stop event, where the great circle is."""
+    metric = sphere_metric()
+    p0, v0 = _unit_sphere_start()
+    deadline = Deadline(at)
+    sol = solve_chart_exp_ode(metric, p0, v0, T, stepper=TaylorStepper(terms=(deadline,)))
+    assert sol.status is SolveStatus.SUCCESS and sol.message.startswith("stopped at t = ")
+    assert sol.n_switches >= 2 and deadline.asked == len(sol.segments) == sol.n_switches + 1
+    assert float(sol.segments[-1].t_end) == pytest.approx(at, abs=1e-14)
+    p_end, _ = sol.end_state()
+    assert np.abs(p_end - great_circle(p0, v0, at)).max() <= 1e-11
+    plain = solve_chart_exp_ode(metric, p0, v0, T)  # the same motion up to there
+    assert [s.to_chart for s in sol.switches] == [s.to_chart for s in plain.switches[: sol.n_switches]]
+    assert np.allclose([s.time for s in sol.switches], [s.time for s in plain.switches[: sol.n_switches]],
+                       rtol=0, atol=1e-12)
+
+
+def test_a_term_whose_values_miss_its_declared_parameters_is_refused_by_name():
+    class Short(Deadline):
+        def parameter_values(self, segment):
+            return np.zeros(0)
+
+    metric = sphere_metric()
+    p0, v0 = _unit_sphere_start()
+    with pytest.raises(ValueError, match=r"declares n_params = 1 but its parameter_values gave 0"):
+        solve_chart_exp_ode(metric, p0, v0, 1.0, stepper=TaylorStepper(terms=(Short(0.5),)))
+
+
+def test_sundman_time_is_a_term_of_the_taylor_stepper_and_its_stop_an_event_of_the_composition():
+    """SundmanStepper is the Taylor stepper with SundmanTime composed: the same solve bitwise; the loop ends it at
+    Sundman's stop event, the composition's last, exactly at t_final."""
+    chain = Chain(4, 2.9)
+    factor = ChainTimeFactor(chain)
+    family = compiled(chain.atlas().charts[0].family)
+    stepper = SundmanStepper(factor)
+    events = stepper.events(family, float, "embedded")
+    assert events[:-1] == family.events() and events[-1].kind == STOP
+    a, c = [1.2, 0.3], [1.0, 0.2]  # a switch at t = 0.11, then wraps
+    composed = solve_chart_exp_ode(chain.metric(), a, c, 6.0, chart=0, stepper=TaylorStepper(terms=(SundmanTime(factor),)))
+    sundman = solve_chart_exp_ode(chain.metric(), a, c, 6.0, chart=0, stepper=stepper)
+    assert sundman.n_switches >= 1 and sundman.message == composed.message == "reached t_final"
+    assert float(sundman.segments[-1].t_end) == 6.0
+    assert [s.n_steps for s in composed.segments] == [s.n_steps for s in sundman.segments]
+    for x, y in zip(composed.final_state[1:], sundman.final_state[1:]):
+        assert np.array_equal(x, y)
+
+
+def test_more_than_one_clock_and_a_state_term_among_the_terms_are_refused():
+    factor = ChainTimeFactor(Chain(4, 2.9))
+    with pytest.raises(ValueError, match="at most one Clock"):
+        TaylorStepper(terms=(SundmanTime(factor), SundmanTime(factor)))
+    with pytest.raises(TypeError, match="terms must hold manifold.terms.Term objects that are not state terms"):
+        TaylorStepper(terms=(ChartGeodesic(),))
