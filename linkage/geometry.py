@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from manifold import GeodesicIntegrationError, SolveStatus, solve_chart_exp_ode
-from manifold.ambient_velocity import ConstrainedVelocity
+from manifold.ambient_velocity import ChartCarried, ConstrainedVelocity
 from manifold.carried import CarriedSolution, CarriedTerm, solve_carried
 from manifold.constrained import ConstrainedGeometry, solve_constrained
 from manifold.geodesic_solver import at_rest
@@ -174,8 +174,9 @@ def _solve_in_charts(chain: Chain, x0: NDArray, v0: NDArray, T: float, term: Car
         # no chart motion to follow (Sundman's time would see no scale of time), but a Jacobi field still moves
         return solve_carried(system, x0, v0, T, [term], precision=precision,
                              **{k: v for k, v in options.items() if k != "q_out"})
-    stepper = SundmanStepper(ChainTimeFactor(chain), tol=precision.tol,
-                             velocity=ConstrainedVelocity(system, carry=(term,)))
+    velocity = ConstrainedVelocity(system)
+    stepper = SundmanStepper(ChainTimeFactor(chain), tol=precision.tol, velocity=velocity,
+                             terms=(ChartCarried(term, velocity),))
     solution = solve_chart_exp_ode(chain.metric(), x0, v0, T, stepper=stepper, project_velocity=True,
                                    precision=dataclasses.replace(precision, tol=None), **options)
     carried = CarriedSolution(solution, (term,), ConstrainedGeometry(system, solution.fp_type))
@@ -252,7 +253,8 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
         ``"hinges"`` (default): in hinge coordinates with the rod constraints
         (:func:`manifold.carried.solve_carried`; any generic lengths).  ``"charts"``: the geodesic in the
         suspension atlas, in Sundman's time with the state ``(a, J c)``, the vectors carried in hinge space
-        beside it (:class:`manifold.ambient_velocity.ConstrainedVelocity` with ``carry=``), through every
+        beside it (:class:`manifold.ambient_velocity.ChartCarried` after the state of
+        :class:`~manifold.ambient_velocity.ConstrainedVelocity`), through every
         chart switch unchanged (they are ambient: no chart coefficients to map), and their invariants checked
         over every step afterwards; where the chain has an atlas.
     tangent_tol

@@ -42,9 +42,9 @@ It is an equation term (:mod:`manifold.terms`): steppers take it as ``velocity=`
 the engine, switches, energy checks and solutions are unchanged; its parameter values (the system's, and ``gamma``
 at each segment's energy) it gives itself (:meth:`ConstrainedVelocity.parameter_values`).
 
-The same state carries :mod:`manifold.carried` terms along the chart geodesic
-(``carry=``): their slots are ambient (a transported vector ``W``, a Jacobi
-field's ``(J, U)``), their equations the constraint system's with ``x = M z(a) + m``
+The same state carries :mod:`manifold.carried` terms along the chart geodesic,
+each an equation term of the composition after it (:class:`ChartCarried`): their slots are ambient (a transported
+vector ``W``, a Jacobi field's ``(J, U)``), their equations the constraint system's with ``x = M z(a) + m``
 and ``v = M J a'``, so a chart switch leaves them as they are: the
 transition's differential acts on chart coefficients, and these have none.
 They follow ``(a, V)`` in the state, and the solver's loop passes them through
@@ -55,6 +55,8 @@ from __future__ import annotations
 
 from collections.abc import Hashable
 from typing import Any
+
+import heyoka as hy
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,7 +69,7 @@ from .geodesic_system import SymbolicPieces
 from .precision import as_fp
 from .solution import DenseOutput
 from .steppers import Advance
-from .terms import SegmentStart, StateTerm
+from .terms import SegmentStart, StateTerm, Term
 from .validation import check_real
 
 #: Damping rate of ``V``'s normal drift (:class:`ConstrainedVelocity`), chosen by measurement in ``docs/methods.md``.
@@ -95,35 +97,26 @@ class ConstrainedVelocity(StateTerm):
         motion's speed scale over the system's length (as the hinge method's
         Baumgarte rate: :func:`manifold.constrained.damping_rate`); 0 leaves the
         drift alone.  The default is chosen by measurement (``docs/methods.md``).
-    carry
-        :class:`~manifold.carried.CarriedTerm` s integrated along (their slots after ``V``; the terms' own
-        damping of drift off the tangent space runs at ``gamma``).  Their start values are taken on the first
-        segment; read them back with :class:`~manifold.carried.CarriedSolution`.
     """
 
-    def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE,
-                 carry: tuple[CarriedTerm, ...] = ()) -> None:
+    def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE) -> None:
         if not isinstance(system, ConstrainedSystem):
             raise TypeError(f"system must be a manifold.constrained.ConstrainedSystem, got {type(system).__name__}")
         self.system = system
         self.rate = check_real("rate", rate)
         if self.rate < 0:
             raise ValueError(f"rate must be a finite real number >= 0, got {rate!r}")
-        self.carry = tuple(carry)
-        if not all(isinstance(term, CarriedTerm) for term in self.carry):
-            raise TypeError(f"carry must hold manifold.carried.CarriedTerm objects, got {self.carry!r}")
         self._compiled = compiled_constrained(system)
         self._values: dict[Any, NDArray] = {}  # fp_type -> parameter values
         self._speed_scale = speed_scale(system)  # once: each segment's damping rate needs it
 
     def __repr__(self) -> str:
-        carry = f", carry={self.carry!r}" if self.carry else ""
-        return f"ConstrainedVelocity({self.system!r}, rate={self.rate!r}{carry})"
+        return f"ConstrainedVelocity({self.system!r}, rate={self.rate!r})"
 
     @property
     def key(self) -> Hashable:
-        """Identity of the compiled equations: the system's key, its metric's sparsity and the carried terms' keys."""
-        return ("constrained-velocity", self.system.key, self._compiled.layout, tuple(t.key for t in self.carry))
+        """Identity of the compiled equations: the system's key and its metric's sparsity."""
+        return ("constrained-velocity", self.system.key, self._compiled.layout)
 
     @property
     def n_params(self) -> int:
@@ -131,11 +124,11 @@ class ConstrainedVelocity(StateTerm):
         return len(self.parameters(float)) + 1
 
     def equations(self, pieces: SymbolicPieces, equations: list[tuple], offset: int) -> list[tuple]:
-        """:meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations` with the carried terms, the
-        system's parameters at ``par[offset ..]`` and ``gamma`` after them."""
+        """:meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`, the system's parameters at
+        ``par[offset ..]`` and ``gamma`` after them."""
         if equations:
             raise ValueError(f"{self!r} sets the state: it must be the first term")
-        return pieces.ambient_velocity_equations(self.pieces(pieces.fp_type), self.n_params - 1, offset, self.carry)
+        return pieces.ambient_velocity_equations(self.pieces(pieces.fp_type), self.n_params - 1, offset)
 
     def pieces(self, fp_type: Any) -> ConstrainedPieces:
         """The system's symbolic equations in ``fp_type``."""
@@ -148,12 +141,11 @@ class ConstrainedVelocity(StateTerm):
         return self._values[fp_type]
 
     def __getstate__(self) -> dict:
-        """Pickle the system, the rate and the terms only (for ensembles on other processes): the compiled store
-        holds a lock."""
-        return {"system": self.system, "rate": self.rate, "carry": self.carry}
+        """Pickle the system and the rate only (for ensembles on other processes): the compiled store holds a lock."""
+        return {"system": self.system, "rate": self.rate}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["system"], state["rate"], state.get("carry", ()))  # type: ignore[misc]
+        self.__init__(state["system"], state["rate"])  # type: ignore[misc]
 
     def check(self, family: CompiledFamily, form: str) -> None:
         """Refuse a system of another ambient dimension than the family's points, and a ``form`` other than the
@@ -166,11 +158,6 @@ class ConstrainedVelocity(StateTerm):
             raise ValueError(f"form={form!r} is a form of the state (a, c); a stepper with velocity= integrates "
                              f"(a, J c) and has none: drop velocity= or form=")
 
-    @property
-    def moves_at_rest(self) -> bool:
-        """Whether the carried terms move while the geodesic stays at rest: with any carried, it is integrated."""
-        return bool(self.carry)
-
     def parameter_values(self, segment: SegmentStart) -> NDArray:
         """The system's parameters, then the damping rate ``gamma`` at the segment's energy and length."""
         gamma = damping_rate(self._speed_scale, self.rate, float(segment.energy), float(segment.t_final - segment.t))
@@ -178,20 +165,9 @@ class ConstrainedVelocity(StateTerm):
 
     def enter(self, segment: SegmentStart) -> NDArray:
         """``(a, V)`` with ``V = J c`` at the segment's start (the conversion once per segment: switches go through
-        the ambient velocity anyway), then the carried slots: the loop's, or on the first segment the terms' start
-        values."""
+        the ambient velocity anyway)."""
         k, N = segment.family.family.dim, segment.family.family.point_dim
-        y, start = segment.y, segment.start
-        carried = y[2 * k :]
-        if self.carry and not carried.size:  # the first segment: the terms' start values
-            # in the ambient frame p = M z + m, v = M J c (the state's V is in the chart's frame, before M)
-            lay, pars = segment.family.layout, segment.pars
-            M = pars[lay.map_index : lay.map_index + N * N].reshape(N, N)
-            m = pars[lay.map_index + N * N : lay.map_index + N * N + N]
-            p, v = M @ start[:N, 0] + m, M @ start[N : 2 * N, 0]
-            geometry = ConstrainedGeometry(self.system, segment.fp_type)
-            carried = np.concatenate([term.start(geometry, p, v) for term in self.carry])
-        return np.concatenate([y[:k], start[N : 2 * N, 0], carried])
+        return np.concatenate([segment.y[:k], segment.start[N : 2 * N, 0]])
 
     def leave(self, advance: Advance, segment: SegmentStart) -> Advance:
         """The integrated ``(a, V)`` read back as ``(a, c)`` (:func:`_chart_states`), dense output included."""
@@ -199,6 +175,71 @@ class ConstrainedVelocity(StateTerm):
         out = None if adv.dense is None else _ChartDense(adv.dense, transfer)
         return Advance(adv.t, _chart_states(adv.y[None, :], transfer)[0], adv.n_steps, adv.event, adv.step_times,
                        _chart_states(adv.step_states, transfer), out, adv.failure)
+
+
+class ChartCarried(Term):
+    """A :class:`~manifold.carried.CarriedTerm` (a transported vector, a Jacobi field) as an equation term of the chart
+    path: its ambient slots after the state ``(a, V)`` of ``velocity``.
+
+    Its equations are the term's own, written on the constraint system's symbolic pieces, with the system's point
+    and velocity read from the chart state (``x = M z(a) + m``, ``v = M J a'``:
+    :meth:`~manifold.geodesic_system.SymbolicPieces.ambient_frame`) and its damping of drift off the tangent space
+    at ``velocity``'s ``gamma``.  It has no parameters of its own; its slots start at the term's
+    :meth:`~manifold.carried.CarriedTerm.start` (the start point and velocity in the ambient frame, completed in
+    the working precision) and, being ambient, pass every chart switch unchanged (the transition's differential acts
+    on chart coefficients, and these have none).  Read them back with :class:`~manifold.carried.CarriedSolution`.
+
+    Parameters
+    ----------
+    term
+        The carried term.
+    velocity
+        The state term it rides on: the composition's must be of the same system (key and parameters).
+    """
+
+    n_params = 0
+
+    def __init__(self, term: CarriedTerm, velocity: ConstrainedVelocity) -> None:
+        if not isinstance(term, CarriedTerm):
+            raise TypeError(f"term must be a manifold.carried.CarriedTerm, got {term!r}")
+        if not isinstance(velocity, ConstrainedVelocity):
+            raise TypeError(f"velocity must be a manifold.ambient_velocity.ConstrainedVelocity, got {velocity!r}")
+        self.term, self.velocity = term, velocity
+
+    def __repr__(self) -> str:
+        return f"ChartCarried({self.term!r}, {self.velocity!r})"
+
+    @property
+    def key(self) -> Hashable:
+        return ("chart-carried", self.term.key)
+
+    @property
+    def moves_at_rest(self) -> bool:
+        """A carried quantity may move while the geodesic stays at rest (a Jacobi field does): integrated."""
+        return True
+
+    def requires(self, state: StateTerm) -> None:
+        """Refuse a state other than ``velocity``'s: another system's equations, or the same with other parameters
+        (the term's start would be projected on another manifold)."""
+        if not (isinstance(state, ConstrainedVelocity) and state.key == self.velocity.key
+                and np.array_equal(state.parameters(float), self.velocity.parameters(float))):
+            raise ValueError(f"{self!r} rides on the state (a, V) of {self.velocity!r}, the composition's state is "
+                             f"{state!r}")
+
+    def equations(self, pieces: SymbolicPieces, equations: list[tuple], offset: int) -> list[tuple]:
+        """``equations`` with the term's slots appended (variables named after their place in the state)."""
+        constrained, N = self.velocity.pieces(pieces.fp_type), pieces.N
+        n_constraint_pars = self.velocity.n_params - 1
+        moves = pieces.ambient_frame(constrained, n_constraint_pars, pieces.layout.terms_index)
+        # the term damps its own drift at the rate its stabilised form reads at par[0]: the velocity's gamma
+        moves[hy.par[0]] = hy.par[pieces.layout.terms_index + n_constraint_pars]
+        y = [hy.expression(f"carried{len(equations)}_{i}") for i in range(self.term.size(N))]
+        return equations + list(zip(y, hy.subs(self.term.equations(constrained, y, True), moves)))
+
+    def slots(self, segment: SegmentStart) -> NDArray:
+        """The term's start values at the start point and velocity, in the ambient frame."""
+        p, v = segment.ambient
+        return self.term.start(ConstrainedGeometry(self.velocity.system, segment.fp_type), p, v)
 
 
 def _chart_states(states: NDArray, transfer: Transfer) -> NDArray:

@@ -245,8 +245,7 @@ class SymbolicPieces:
         M = self._par_matrix(lay.map_index)
         return [hy.sum([M[r][s] * self.z[s] for s in range(N)] + [hy.par[lay.map_index + N * N + r]]) for r in range(N)]
 
-    def ambient_velocity_equations(self, constrained: Any, n_constraint_pars: int, offset: int,
-                                   carry: tuple = ()) -> list[tuple]:
+    def ambient_velocity_equations(self, constrained: Any, n_constraint_pars: int, offset: int) -> list[tuple]:
         r"""The geodesic with the chart frame's ambient velocity ``V = J c`` as state: ``(a, V)`` instead of ``(a, c)``.
 
         .. math::
@@ -256,7 +255,8 @@ class SymbolicPieces:
         with ``f(x, v)`` the constrained acceleration ``K^{-1} G^T M_G^{-1} (-(dG/dt) v)`` of a
         :class:`~manifold.constrained.ConstrainedSystem` whose zero set is the family's image (its ``x``, ``v`` in
         the ambient frame; ``constrained`` its :class:`~manifold.constrained.ConstrainedPieces`, whose
-        ``n_constraint_pars`` parameters move to ``par[offset ..]``, and ``gamma`` the one after them).  The chart's
+        ``n_constraint_pars`` parameters move to ``par[offset ..]``, and ``gamma`` the one after them:
+        :meth:`ambient_frame`).  The chart's
         second derivatives ``z_ab c^a c^b`` never appear: the constraints give the normal acceleration, and ``a'``
         needs only ``J``, which is why a step costs 0.6-0.7x the embedded one's Taylor recursions
         (:mod:`manifold.ambient_velocity`); ``a'`` is :meth:`velocity_coefficients` (forward substitution, ``O(n)``,
@@ -264,30 +264,35 @@ class SymbolicPieces:
         rounding's normal drift feed back.  ``V - J a'`` is that normal drift (0 on the exact solution), and the
         last term damps it: left alone it turns into tangent velocity as the tangent space turns, and the energy
         error grew like ``t^0.6..0.9`` instead of ``sqrt(t)``.
-
-        ``carry`` (:class:`~manifold.carried.CarriedTerm` s) appends each term's slots (``carried{j}_{i}``, in the
-        ambient frame) with its equations on ``constrained``, moved the same way (its damping rate, the
-        constrained system's ``par[0]``, becomes ``gamma``).
         """
         lay, N = self.layout, self.N
-        V = [hy.expression(f"V{r}") for r in range(N)]
-        M, M_inv = self._par_matrix(lay.map_index), self._par_matrix(lay.inverse_map_index)
+        V = self.ambient_velocity()
+        M_inv = self._par_matrix(lay.inverse_map_index)
         c = self.velocity_coefficients(V)
         JC = self.along(c)
+        moves = self.ambient_frame(constrained, n_constraint_pars, offset)
+        f = hy.subs([rhs for _, rhs in constrained.equations(False)[N:]], moves)
+        gamma = hy.par[offset + n_constraint_pars]
+        return (list(zip(self.a, c))
+                + [(V[r], hy.sum([M_inv[r][s] * f[s] for s in range(N)]) - gamma * (V[r] - JC[r])) for r in range(N)])
+
+    def ambient_velocity(self) -> list[hy.expression]:
+        """The state variables ``V`` of :meth:`ambient_velocity_equations` (the chart frame's ambient velocity)."""
+        return [hy.expression(f"V{r}") for r in range(self.N)]
+
+    def ambient_frame(self, constrained: Any, n_constraint_pars: int, offset: int) -> dict:
+        """The substitutions that put ``constrained``'s expressions (:class:`~manifold.constrained.ConstrainedPieces`)
+        on the state ``(a, V)`` of :meth:`ambient_velocity_equations`: its point ``x -> M z(a) + m``, its velocity
+        ``v -> M J a'`` (``a'`` read from ``V``), its ``n_constraint_pars`` parameters ``par[j] -> par[offset + j]``.
+        """
+        lay, N = self.layout, self.N
+        M = self._par_matrix(lay.map_index)
+        JC = self.along(self.velocity_coefficients(self.ambient_velocity()))
         v = [hy.sum([M[r][s] * JC[s] for s in range(N)]) for r in range(N)]
         moves = {hy.par[j]: hy.par[offset + j] for j in range(n_constraint_pars)}
         moves.update({xi: pi for xi, pi in zip(constrained.x, self.ambient_point())})
         moves.update({vi: wi for vi, wi in zip(constrained.v, v)})
-        f = hy.subs([rhs for _, rhs in constrained.equations(False)[N:]], moves)
-        gamma = hy.par[offset + n_constraint_pars]
-        equations = (list(zip(self.a, c))
-                     + [(V[r], hy.sum([M_inv[r][s] * f[s] for s in range(N)]) - gamma * (V[r] - JC[r]))
-                        for r in range(N)])
-        moves[hy.par[0]] = gamma  # a carried term damps its own drift at the rate its stabilised form reads at par[0]
-        for j, term in enumerate(carry):
-            y = [hy.expression(f"carried{j}_{i}") for i in range(term.size(N))]
-            equations += list(zip(y, hy.subs(term.equations(constrained, y, True), moves)))
-        return equations
+        return moves
 
     def sundman_equations(self, factor: Any, equations: list[tuple], offset: int) -> list[tuple]:
         """Geodesic ``equations`` in Sundman's time: ``dy/dtau = s(p) dy/dt`` and ``du/dtau = s(p) / (t_final - origin)``.

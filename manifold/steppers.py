@@ -135,8 +135,9 @@ class TaylorStepper(Stepper):
     terms
         The further equation terms (:class:`~manifold.terms.Term`, not state terms), composed after the state's in
         this order; at most one :class:`~manifold.terms.Clock` (:class:`manifold.sundman.SundmanTime`), which then
-        runs each segment.  Every term's parameter values are asked of it at each segment's start
-        (:meth:`~manifold.terms.Term.parameter_values`), its events acted on by the loop.
+        runs each segment, and last.  Every term's parameter values are asked of it at each segment's start
+        (:meth:`~manifold.terms.Term.parameter_values`), its slots' start values at the first
+        (:meth:`~manifold.terms.Term.slots`), its events acted on by the loop.
     """
 
     name = "taylor"
@@ -155,8 +156,9 @@ class TaylorStepper(Stepper):
             raise TypeError(f"terms must hold manifold.terms.Term objects that are not state terms (give a state term "
                             f"as velocity=), got {self.terms!r}")
         clocks = [term for term in self.terms if isinstance(term, Clock)]
-        if len(clocks) > 1:
-            raise ValueError(f"terms may hold at most one Clock (one independent variable), got {clocks!r}")
+        if len(clocks) > 1 or (clocks and self.terms[-1] is not clocks[0]):
+            raise ValueError(f"terms may hold at most one Clock (one independent variable), and last (it transforms "
+                             f"every equation before it), got {self.terms!r}")
         self.clock: Clock | None = clocks[0] if clocks else None
         if velocity is not None:
             self.name = f"{self.name} (a, J c)"  # the solution's method says which state was integrated
@@ -179,10 +181,13 @@ class TaylorStepper(Stepper):
         return state
 
     def composition(self, family: CompiledFamily, form: str) -> tuple[Term, ...]:
-        """The terms it integrates: the state's, then :attr:`terms`, each checked against ``family``."""
+        """The terms it integrates: the state's, then :attr:`terms`, each checked against ``family`` and the state."""
         for term in self.terms:
             term.check(family, form)
-        return (self.state(family, form), *self.terms)
+        state = self.state(family, form)
+        for term in self.terms:
+            term.requires(state)
+        return (state, *self.terms)
 
     def events(self, family: CompiledFamily, fp_type: Any, form: str) -> list[Event]:
         return family.composition(fp_type, self.composition(family, form))[1]
@@ -200,7 +205,9 @@ class TaylorStepper(Stepper):
         with family.integrator(fp_type, self.tol, terms, backward, self.compact_mode, self.opt_level) as ta:
             def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
                 segment = SegmentStart(family, fp_type, t, y, t_final, pars)
-                y_in = state.enter(segment)
+                carried = segment.carried if segment.carried.size else np.concatenate(
+                    [segment.carried] + [term.slots(segment) for term in self.terms])  # the first segment: starts
+                y_in = np.concatenate([state.enter(segment), carried])
                 if t_final == t:  # nothing to integrate (a switch or wrap event can end a segment exactly at t_final)
                     return state.leave(Advance(t, y_in, 0, None, np.array([t]), y_in[None, :],
                                                PointDense(y_in) if dense else None), segment)

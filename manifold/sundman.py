@@ -45,7 +45,7 @@ from .precision import as_fp, unit_roundoff
 from .progress import step_callback
 from .solution import DenseOutput, PointDense, TaylorDense, polynomial_values
 from .steppers import Advance, TaylorStepper, terminal_event
-from .terms import Clock, SegmentStart
+from .terms import Clock, SegmentStart, Term
 
 #: Bound on ``|tau|`` of one segment; the segment ends by its ``u = 1`` event long before (``tau`` is about
 #: ``t / s``, and ``s`` stays positive on the manifold).
@@ -286,15 +286,21 @@ class SundmanStepper(TaylorStepper):
         The :class:`TimeFactor` (for a chain: :class:`linkage.time_factor.ChainTimeFactor`).
     tol, compact_mode, opt_level, velocity
         As for :class:`~manifold.steppers.TaylorStepper`.
+    terms
+        Further terms, composed before Sundman's time (which multiplies their equations too): for instance
+        :class:`manifold.ambient_velocity.ChartCarried` s.
     """
 
     name = "taylor-sundman"
 
-    def __init__(self, factor: TimeFactor, tol: float | None = None, **options: Any) -> None:
-        super().__init__(tol, terms=(SundmanTime(factor),), **options)  # SundmanTime refuses anything but a TimeFactor
+    def __init__(self, factor: TimeFactor, tol: float | None = None, *, terms: Sequence[Term] = (),
+                 **options: Any) -> None:
+        # SundmanTime refuses anything but a TimeFactor
+        super().__init__(tol, terms=(*terms, SundmanTime(factor)), **options)
         self.factor = factor
 
     def __repr__(self) -> str:
         velocity = "" if self.velocity is None else f", velocity={self.velocity!r}"
+        terms = f", terms={self.terms[:-1]!r}" if self.terms[:-1] else ""
         return (f"SundmanStepper({self.factor!r}, tol={self.tol!r}, compact_mode={self.compact_mode}, "
-                f"opt_level={self.opt_level}{velocity})")
+                f"opt_level={self.opt_level}{velocity}{terms})")

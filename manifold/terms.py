@@ -18,16 +18,17 @@ empty system.  Each term declares
   (a :data:`~manifold.events.STOP` ends the solve);
 * its **switch map**: how the atlas loop's state ``(a, c)`` maps to the term's
   state at each segment's start (:meth:`StateTerm.enter`) and back at its end
-  (:meth:`StateTerm.leave`; the chart switch itself acts on ``(a, c)``), and
-  whether that state changes while the geodesic stays at rest
-  (:attr:`Term.moves_at_rest`: then a start at rest is integrated all the same).
+  (:meth:`StateTerm.leave`; the chart switch itself acts on ``(a, c)``); the slots
+  of a later term start at :meth:`Term.slots` and the loop carries them through
+  switches unchanged; and whether a term's slots change while the geodesic stays at
+  rest (:attr:`Term.moves_at_rest`: then a start at rest is integrated all the same).
 
 A term that changes the independent variable, as Sundman's time does, is a
 :class:`Clock`: it runs the integrator over a segment itself and reports physical
 times.  The terms: :class:`ChartGeodesic` (the state ``(a, c)``, the default),
-:class:`manifold.ambient_velocity.ConstrainedVelocity` (the state ``(a, J c)``,
-with :mod:`manifold.carried` terms after it) and
-:class:`manifold.sundman.SundmanTime` (Sundman's time, a :class:`Clock`).  A new
+:class:`manifold.ambient_velocity.ConstrainedVelocity` (the state ``(a, J c)``),
+:class:`manifold.ambient_velocity.ChartCarried` (a :mod:`manifold.carried` term, a transported vector or a
+Jacobi field, after it) and :class:`manifold.sundman.SundmanTime` (Sundman's time, a :class:`Clock`, last).  A new
 term is a subclass in its own file, passed to
 :class:`~manifold.steppers.TaylorStepper` (``velocity=`` for a state term,
 ``terms=`` for the others).
@@ -94,6 +95,21 @@ class SegmentStart:
         """The kinetic energy at the segment's start, in the working precision."""
         return self.start[-1, 0]
 
+    @cached_property
+    def ambient(self) -> tuple[NDArray, NDArray]:
+        """The point ``p = M z + m`` and velocity ``v = M J c`` at the start, in the ambient frame (the chart's map
+        ``M``, ``m`` read from :attr:`pars`)."""
+        lay, N = self.family.layout, self.family.family.point_dim
+        M = self.pars[lay.map_index : lay.map_index + N * N].reshape(N, N)
+        m = self.pars[lay.map_index + N * N : lay.map_index + N * N + N]
+        return M @ self.start[:N, 0] + m, M @ self.start[N : 2 * N, 0]
+
+    @property
+    def carried(self) -> NDArray:
+        """What the loop carries after ``(a, c)``: the terms' slots from the segment before (empty on the first)."""
+        k = self.family.family.dim
+        return self.y[2 * k :]
+
 
 class Term(ABC):
     """One piece of a compiled geodesic system (module docstring)."""
@@ -126,6 +142,16 @@ class Term(ABC):
         """Refuse a compiled family or a ``form`` of the state ``(a, c)`` that it cannot be composed with (default:
         none refused)."""
 
+    def requires(self, state: StateTerm) -> None:
+        """Refuse a composition whose state term it cannot follow (default: it follows any)."""
+
+    def slots(self, segment: SegmentStart) -> NDArray:
+        """The start values of the state slots its :meth:`equations` add, at the solve's first segment, in
+        ``segment.fp_type`` (none by default).  The loop carries them after ``(a, c)`` from segment to segment and
+        through chart switches unchanged (a term's slots are the same in every chart: ambient, say); a
+        :class:`Clock` restarts its own in each segment instead."""
+        return np.zeros(0, dtype=segment.y.dtype)
+
     def parameter_values(self, segment: SegmentStart) -> NDArray:
         """The values of its :attr:`n_params` runtime parameters for the segment starting at ``segment``, in
         ``segment.fp_type`` (none by default).  The stepper asks every term of its composition at each segment's
@@ -147,9 +173,9 @@ class StateTerm(Term):
         """Refuse a compiled family or a ``form`` it cannot integrate."""
 
     def enter(self, segment: SegmentStart) -> NDArray:
-        """Its switch map on the way in: the integrated state at the segment's start, from the loop's
-        ``segment.y`` (default: the loop's state is its own)."""
-        return segment.y
+        """Its switch map on the way in: its state at the segment's start, from the loop's ``(a, c)`` (default: the
+        loop's state is its own); the later terms' slots follow it (:meth:`Term.slots`)."""
+        return segment.y[: 2 * segment.family.family.dim]
 
     def leave(self, advance: Advance, segment: SegmentStart) -> Advance:
         """Its switch map on the way out: the stepper's :class:`~manifold.steppers.Advance` in the integrated state,

@@ -13,15 +13,22 @@ import pytest
 
 from linkage import Chain
 from linkage.constraints import ChainSystem
+from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
 from manifold import compiled, solve_chart_exp_ode
-from manifold.ambient_velocity import ConstrainedVelocity
+from manifold.ambient_velocity import ChartCarried, ConstrainedVelocity
+from manifold.carried import CarriedSolution, CarriedTerm, solve_carried
+from manifold.constrained import ConstrainedGeometry
+from manifold.jacobi import JacobiField
 from manifold.events import EITHER, RISING, STOP, Event
 from manifold.solution import SolveStatus
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper, SundmanTime
+from manifold.precision import as_fp
 from manifold.terms import ChartGeodesic, Term
+from manifold.transport import ParallelTransport
 
+from .conftest import unit_speed_start
 from .sphere_family import great_circle, sphere_metric
 
 
@@ -187,3 +194,90 @@ def test_more_than_one_clock_and_a_state_term_among_the_terms_are_refused():
         TaylorStepper(terms=(SundmanTime(factor), SundmanTime(factor)))
     with pytest.raises(TypeError, match="terms must hold manifold.terms.Term objects that are not state terms"):
         TaylorStepper(terms=(ChartGeodesic(),))
+
+
+class ParallelVector(CarriedTerm):
+    """One tangent vector transported along the geodesic, written here as a new kind of carried quantity: its
+    equations ``W' = -K^-1 G^T M^-1 ((dG/dt) W + alpha G W)`` on the system's pieces, its K-norm the invariant."""
+
+    name = "a parallel vector"
+
+    def __init__(self, vector):
+        self.vector = np.asarray(vector, dtype=float)
+
+    key = "parallel vector"
+
+    def size(self, N):
+        return N
+
+    def equations(self, pieces, y, stabilised):
+        turn = pieces.bilinear(y)
+        if stabilised:
+            turn = [h + hy.par[0] * gw for h, gw in zip(turn, pieces.rates(y))]
+        return pieces.correction([-r for r in turn])
+
+    def start(self, geometry, x, v):
+        return geometry.tangent(x[None, :], as_fp(self.vector[None, :], geometry.fp))[0]
+
+    def invariants(self, geometry, x, v, y):
+        norm2 = np.einsum("bi,ij,bj->b", y, geometry.K, y)[:, None]
+        return norm2, np.abs(norm2.astype(float))
+
+    def read(self, geometry, x, v, y):
+        return {"vector": y}
+
+
+def test_a_carried_quantity_written_outside_the_library_is_a_term_of_the_chart_path():
+    """Composed after the state (a, J c) and before Sundman's time, through chart switches, with no file of manifold/
+    touched: transporting the geodesic's own velocity gives the velocity, and another vector agrees with the
+    transport in hinge coordinates (the constraint equations, no charts) and keeps its length."""
+    chain, T = Chain(4, 2.9), 6.0
+    system, chart = ChainSystem(chain), chain.metric().atlas.charts[0]
+    a, c = np.array([1.2, 0.3]), np.array([1.0, 0.2])  # chart 0 heading for its pole: a switch at t = 0.11, wraps
+    x0, v0, wx = chart.get_point(a), chart.tangent_vector(a, c), chart.tangent_vector(a, np.array([-0.4, 0.9]))
+    velocity = ConstrainedVelocity(system)
+    terms = (ChartCarried(ParallelVector(v0), velocity), ChartCarried(ParallelVector(wx), velocity))
+    stepper = SundmanStepper(ChainTimeFactor(chain), velocity=velocity, terms=terms)
+    sol = solve_chart_exp_ode(chain.metric(), a, c, T, chart=0, stepper=stepper)
+    assert sol.n_switches >= 1 and sol.stats.n_wraps >= 1
+    carried = CarriedSolution(sol, tuple(t.term for t in terms), ConstrainedGeometry(system, float))
+    assert carried.violation(stepper.relative_tolerance(float)) is None
+    ts = np.linspace(0.0, T, 25)
+    x, v, (own, other) = carried(ts)
+    assert np.abs(own["vector"] - v).max() <= 1e-11
+    hinges = solve_carried(system, x0, v0, T, [ParallelTransport(wx)])
+    _, _, (reference,) = hinges(ts)
+    assert np.abs(other["vector"] - reference["vectors"][:, 0]).max() <= 1e-10
+    norms = np.einsum("bi,ij,bj->b", other["vector"], system.metric_matrix, other["vector"])
+    assert np.abs(norms - norms[0]).max() <= 1e-13 * norms[0]
+
+
+def test_a_carried_term_refuses_a_state_of_another_system():
+    velocity = ConstrainedVelocity(ChainSystem(Chain(4, 2.9)))
+    other = ConstrainedVelocity(ChainSystem(Chain(4, 2.8)))
+    stepper = TaylorStepper(velocity=other, terms=(ChartCarried(ParallelVector(np.zeros(6)), velocity),))
+    h0, u0 = unit_speed_start(Chain(4, 2.8), [0.2, 0.3], [1.0, 0.2])
+    with pytest.raises(ValueError, match=r"rides on the state \(a, V\) of ConstrainedVelocity"):
+        free_motion(Chain(4, 2.8), h0, u0, 1.0, method="charts", stepper=stepper)
+
+
+def test_a_start_at_rest_is_integrated_when_a_term_moves_at_rest():
+    """At rest the geodesic is its start and a Jacobi field is ``J(0) + t D_t J(0)`` (no curvature term: ``v = 0``).
+    The loop asks the stepper's terms whether anything moves at rest: the carried field does, so the solve integrates
+    it; without it the start is the solution, with no step."""
+    chain, T = Chain(4, 2.9), 2.5
+    system, chart = ChainSystem(chain), chain.metric().atlas.charts[0]
+    a = np.array([0.4, -0.3])
+    x0, j0, w0 = chart.get_point(a), chart.tangent_vector(a, np.array([0.3, 0.1])), chart.tangent_vector(a, [-0.2, 0.5])
+    velocity = ConstrainedVelocity(system)
+    field = ChartCarried(JacobiField(j0, w0), velocity)
+    still = solve_chart_exp_ode(chain.metric(), x0, np.zeros_like(x0), T, stepper=TaylorStepper(velocity=velocity))
+    assert still.n_steps == 0
+    moving = solve_chart_exp_ode(chain.metric(), x0, np.zeros_like(x0), T,
+                                 stepper=TaylorStepper(velocity=velocity, terms=(field,)))
+    assert moving.n_steps > 0
+    carried = CarriedSolution(moving, (field.term,), ConstrainedGeometry(system, float))
+    x, _, (values,) = carried(np.array([0.0, 1.0, T]))
+    assert np.abs(x - x0).max() <= 1e-15  # the chart map's rounding of the start only
+    expected = j0 + np.array([0.0, 1.0, T])[:, None] * w0
+    assert np.abs(values["field"][:, 0] - expected).max() <= 1e-13
