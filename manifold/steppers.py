@@ -176,9 +176,12 @@ class TaylorStepper(Stepper):
 
     def state(self, family: CompiledFamily, form: str) -> StateTerm:
         """The term that sets the integrated state: ``velocity``, or the chart geodesic in ``form``; checked."""
-        state = ChartGeodesic(form) if self.velocity is None else self.velocity
+        state = self._state(form)
         state.check(family, form)
         return state
+
+    def _state(self, form: str) -> StateTerm:
+        return ChartGeodesic(form) if self.velocity is None else self.velocity
 
     def composition(self, family: CompiledFamily, form: str) -> tuple[Term, ...]:
         """The terms it integrates: the state's, then :attr:`terms`, each checked against ``family`` and the state."""
@@ -193,8 +196,7 @@ class TaylorStepper(Stepper):
         return family.composition(fp_type, self.composition(family, form))[1]
 
     def moves_at_rest(self, form: str) -> bool:
-        state = ChartGeodesic(form) if self.velocity is None else self.velocity
-        return any(term.moves_at_rest for term in (state, *self.terms))
+        return any(term.moves_at_rest for term in (self._state(form), *self.terms))
 
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
