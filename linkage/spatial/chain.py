@@ -303,8 +303,10 @@ class RevoluteChain:
             parameter joint is fixed (only components with such a joint at
             ``+-I``, where the product has zero norm, are dropped).
         NotImplementedError
-            For ``n = 7`` without a given curve, float axes, or a 6R component that is
-            a double cover of neither the ``t_5`` nor the ``t_6`` line.
+            For ``n = 7`` without a given curve, float axes, or a component that the
+            elimination cannot parametrise in any cyclic numbering of the joints (a 6R
+            component that is a double cover of the line of neither of the last two joints,
+            whichever joint comes first).
         """
         if self._curve is not None:
             return self._curve
@@ -329,16 +331,41 @@ class RevoluteChain:
         return self._curve
 
     def _closing_component(self, candidates: Callable[..., list[ConfigurationCurve]]) -> ConfigurationCurve:
-        """The one candidate curve that satisfies the closure condition identically."""
-        comps = []
-        for curve in candidates(self.axes):
+        """The one candidate curve that satisfies the closure condition identically.
+
+        The elimination singles out joints (the last two, whose lines the curve must cover
+        at most twice).  When it finds no component with the axes as numbered, or cannot
+        parametrise one (``NotImplementedError``), the chain is numbered cyclically from
+        joint ``2, 3, ..., n`` in turn: ``prod (t_k - h_k)`` is real exactly when its
+        cyclic shifts are (they are conjugate to it), so a curve of the shifted chain is
+        one of this chain with its joints renumbered back.  A component on which a joint
+        stays at the identity (``t_k = inf``) or covers its line more than twice is then
+        parametrised by other joints.
+        """
+        refusal: NotImplementedError | None = None
+        comps: list[ConfigurationCurve] = []
+        for shift in range(self.n):
             try:
-                self._check_closure_identically(curve)
-            except ValueError:
+                found = candidates(self.axes[shift:] + self.axes[:shift])
+            except NotImplementedError as err:
+                refusal = refusal or err
                 continue
-            comps.append(curve)
+            comps = []
+            for curve in (_renumbered(c, shift) for c in found):
+                try:
+                    self._check_closure_identically(curve)
+                except ValueError:
+                    continue
+                comps.append(curve)
+            if comps:
+                break
+        if not comps and refusal is not None:
+            raise NotImplementedError(f"{refusal} (in each of the {self.n} cyclic numberings of the joints)")
         if not comps:
-            raise RigidLinkageError("the chain is rigid: the closure equations have no common curve component")
+            raise RigidLinkageError(
+                "the chain is rigid: the closure equations have no common curve component "
+                f"(in each of the {self.n} cyclic numberings of the joints)"
+            )
         if len(comps) > 1:
             raise ReducibleCurveError(
                 f"the configuration curve is reducible ({len(comps)} components): "
@@ -788,6 +815,13 @@ def distances_from_connections(n: int, connections: dict[tuple[int, int], int]) 
             side = set(range(i + 1, j + 1))
             d[i - 1, j - 1] = d[j - 1, i - 1] = sum(k for (a, b), k in connections.items() if (a in side) != (b in side))
     return d
+
+
+def _renumbered(curve: ConfigurationCurve, shift: int) -> ConfigurationCurve:
+    """A curve of the chain numbered from joint ``shift + 1`` as a curve of the chain itself."""
+    back = [(k - shift) % curve.n for k in range(curve.n)]
+    a, b, c = ([p[k].as_expr() for k in back] for p in (curve.a, curve.b, curve.c))
+    return ConfigurationCurve(a, b, c, None if curve.g is None else curve.g.as_expr())
 
 
 def _joint_inf(t: Any) -> bool:

@@ -133,12 +133,19 @@ def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
     coordinates of ``Z (t_3 + h_3)`` in ``L_12`` give ``t_1, t_2``.  Candidates must still
     pass the exact closure check.
 
+    On a component where ``t_3`` or ``t_4`` stays at ``inf`` (the joint at rest) the last
+    entry of the null vector vanishes, and ``t_3 = v_0/v_2``, ``t_4 = v_0/v_1`` hold instead.
+    A component on which ``t_5`` or ``t_6`` stays at ``inf`` lies over a line at infinity of
+    the ``(t_5, t_6)`` plane and is not seen here; ``RevoluteChain`` numbers the joints
+    cyclically from another joint to find it.
+
     Raises
     ------
     NotImplementedError
-        For a factor of degree above 2 in both ``t_5`` and ``t_6`` (not a double cover
-        of either line) on which the closure holds (a numerical screen at generic
-        points tells such a component from a spurious factor, which is skipped).
+        For a factor on which the closure holds (a numerical screen at generic points
+        tells such a component from a spurious factor, which is skipped) but that gives
+        no candidate: degree above 2 in both ``t_5`` and ``t_6`` (a double cover of
+        neither line), a fixed ``t_5`` or ``t_6``, or ``M`` of rank 2 or less all along it.
     """
     h1, h2, h3, h4, h5, h6 = axes
     x, y = sympy.symbols("x y")  # t_5, t_6
@@ -178,15 +185,21 @@ def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
         # the null vector of M: a column of the adjugate, polynomials in (x, y) first
         adjugate = m.adjugate(method="berkowitz")
         column = next((adjugate.col(k) for k in range(4) if not _vanishes_on(adjugate.col(k), f, x, y)), None)
-        if column is None:
+        if column is None:  # M has a null space of dimension 2 or more all along f = 0
+            _refuse_if_closing(
+                _closes_somewhere(f, x, y, m, coords, axes), f"the component {f} = 0 (M has rank 2 or less on it)"
+            )
             continue
         v = field.homogenised(list(column), solved, param, num, den)
-        t3, t4 = field.ratio(v[1], v[3]), field.ratio(v[2], v[3])
+        # v ~ (t3 t4, t3, t4, 1): t3 = v1/v3 = v0/v2, t4 = v2/v3 = v0/v1; v3 = 0 on the component
+        # when t3 or t4 stays at inf (the identity) there, and then the other quotients hold
+        pair3, pair4 = ((v[0], v[2]), (v[0], v[1])) if field.reduce(v[3]).is_zero else ((v[1], v[3]), (v[2], v[3]))
+        t3, t4 = field.ratio(*pair3), field.ratio(*pair4)
         # Z (t_3 + h_3) with every t_k = n_k / d_k replaced by n_k + d_k h_k (a projective point)
         pair5 = (T, one) if solved == y else (num, den)
         pair6 = (T, one) if solved == x else (num, den)
         z = DualQuaternion.scalar(field.poly(1), field.poly(0))
-        for n_, d_, h in ((pair6[0], pair6[1], h6), (pair5[0], pair5[1], h5), (v[2], v[3], h4), (v[1], v[3], h3)):
+        for n_, d_, h in ((pair6[0], pair6[1], h6), (pair5[0], pair5[1], h5), (*pair4, h4), (*pair3, h3)):
             n_, d_ = field.poly(n_), field.poly(d_)
             factor = DualQuaternion([n_ if k == 0 else field.poly(0) for k in range(8)]) + h.map(field.poly) * d_
             z = (z * factor).map(field.reduce)
@@ -227,7 +240,8 @@ def _closure_holds(joints: list, axes: Sequence[DualQuaternion]) -> bool:
     """The product is a nonzero scalar to ``1e-8`` of its size (a genuine configuration)."""
     prod = DualQuaternion.scalar(1.0 + 0j)
     for t, h in zip(joints, axes):
-        prod = prod * (t - h.map(complex))
+        if not np.isinf(abs(t)):  # t = inf: the identity, factor 1
+            prod = prod * (t - h.map(complex))
     size = max(abs(c) for c in prod)
     return bool(max(abs(c) for c in prod.coefficients[1:]) <= 1e-8 * size and abs(prod[0]) > 1e-8 * size)
 
@@ -260,25 +274,56 @@ def _closes_somewhere_5r(f, y, x, axes: Sequence[DualQuaternion], coords: sympy.
 def _closes_somewhere(f, x, y, m: sympy.Matrix, coords: sympy.Matrix, axes: Sequence[DualQuaternion]) -> bool:
     """Whether the closure holds at generic complex points over ``f(t_5, t_6) = 0`` (6R).
 
-    At each point the null vector of ``M`` gives ``t_3, t_4`` and ``L_12`` gives ``t_1, t_2``;
-    a genuine component closes to rounding (``1e-8``), a spurious factor misses by order one.
-    Used only to tell the two apart where no candidate curve could be built.
+    At each point the null vectors of ``M`` of the form ``(t_3 t_4, t_3, t_4, 1)`` (up to
+    scale, so ``t_3`` or ``t_4`` may be ``inf``) give ``t_3, t_4``, and ``L_12`` gives
+    ``t_1, t_2``; a genuine component closes to rounding (``1e-8``), a spurious factor
+    misses by order one.  Used only to tell the two apart where no candidate curve could
+    be built.
     """
     h = [a.map(complex) for a in axes]
     coords_f = np.array(coords.evalf(), dtype=complex)
     for t5, t6 in _screen_points(f, x, y):
         mm = np.array(m.subs({x: t5, y: t6}).evalf(), dtype=complex)
-        v = np.linalg.svd(mm)[2][-1].conj()
-        if abs(v[3]) < 1e-12 * np.max(np.abs(v)):
-            continue
-        t3, t4 = v[1] / v[3], v[2] / v[3]
-        z = (t6 + h[5]) * (t5 + h[4]) * (t4 + h[3]) * (t3 + h[2])
-        alpha = coords_f @ np.array(list(z), dtype=complex)
-        if abs(alpha[3]) < 1e-12 * np.max(np.abs(alpha)):
-            continue
-        if _closure_holds([-alpha[2] / alpha[3], -alpha[1] / alpha[3], t3, t4, t5, t6], axes):
-            return True
+        for v in _segre_null_vectors(mm):
+            z = (t6 + h[5]) * (t5 + h[4])
+            # the factors (t_4 + h_4), (t_3 + h_3) as homogeneous pairs: (v2 + v3 h4), (v1 + v3 h3),
+            # or (v0 + v1 h4), (v0 + v2 h3) where v3 = 0 (a joint at inf)
+            pair4, pair3 = ((v[2], v[3]), (v[1], v[3])) if abs(v[3]) > 1e-9 else ((v[0], v[1]), (v[0], v[2]))
+            z = z * (pair4[0] + pair4[1] * h[3]) * (pair3[0] + pair3[1] * h[2])
+            alpha = coords_f @ np.array(list(z), dtype=complex)
+            joints = [_quotient(-alpha[2], alpha[3]), _quotient(-alpha[1], alpha[3])]
+            joints += [_quotient(*pair3), _quotient(*pair4), t5, t6]
+            if _closure_holds(joints, axes):
+                return True
     return False
+
+
+def _segre_null_vectors(mm: np.ndarray) -> list[np.ndarray]:
+    """Unit null vectors ``v`` of the 4 x 4 matrix ``mm`` with ``v0 v3 = v1 v2`` (to rounding).
+
+    A one-dimensional null space gives its vector; a two-dimensional one ``span(p, q)`` the
+    (at most two) vectors ``p + s q`` (or ``q``) on the quadric ``v0 v3 = v1 v2``.
+    """
+    _, sv, vh = np.linalg.svd(mm)
+    if sv[-1] > 1e-8 * sv[0]:
+        return []
+    if sv[-2] > 1e-8 * sv[0]:
+        return [vh[-1].conj()]
+    p, q = vh[-1].conj(), vh[-2].conj()
+
+    def segre(a, b):  # the bilinear form of v0 v3 - v1 v2, symmetrised
+        return (a[0] * b[3] + a[3] * b[0] - a[1] * b[2] - a[2] * b[1]) / 2
+
+    roots = np.roots([segre(q, q), 2 * segre(p, q), segre(p, p)])  # in s, for p + s q
+    out = [p + s * q for s in roots]
+    if abs(segre(q, q)) < 1e-12:  # a root at s = inf
+        out.append(q)
+    return [v / np.linalg.norm(v) for v in out]
+
+
+def _quotient(num: complex, den: complex) -> complex:
+    """``num / den``, ``inf`` for a vanishing denominator (the joint at the identity)."""
+    return complex("inf") if abs(den) <= 1e-12 * max(abs(num), 1e-300) else num / den
 
 
 def _vanishes_on(column: sympy.Matrix, f, x, y) -> bool:
