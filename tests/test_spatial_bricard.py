@@ -83,3 +83,15 @@ def test_example_13_bond_pattern(bricard):
     assert np.array_equal(distances_from_connections(n, bricard.connections()), d)
     # genus one: no joint parametrises the curve, every joint length is at least 2
     assert min(d[(i - 1) % n, i] for i in range(n)) >= 2
+
+
+def test_remark_13_no_bond_at_infinity_in_any_pose(bricard):
+    """Joints 3 and 6 have length 4: a bond at infinity there is not excluded by the fibre count of
+    ``tests/test_spatial_remark_13.py``, but it needs a real ``t3`` or ``t6`` at a bond (then some
+    pose of the linkage puts it at ``inf``).  At every bond they are ``+-I`` or not real."""
+    d, n = bricard.distance_matrix(), 6
+    assert [int(d[(k - 1) % n, k]) for k in range(n)] == [2, 2, 4, 2, 2, 4]
+    for b in bricard.bonds():
+        assert not any(np.isinf(abs(z)) for z in b.joints)
+        for z in (b.joints[2], b.joints[5]):
+            assert abs(z * z + 1) < 1e-12 or abs(z.imag) > 1e-6

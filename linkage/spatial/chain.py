@@ -197,6 +197,50 @@ class RevoluteChain:
                 r = r * (t - h)
         return r
 
+    def reposed(self, joints: Sequence[Any]) -> RevoluteChain:
+        """The same linkage assembled in the real configuration ``joints`` instead of the home pose.
+
+        Link ``o_k`` moves by ``P_k = (t_1 - h_1) ... (t_k - h_k)`` (the pose ``F_0k``), so the
+        axis ``h_k``, carried by ``o_{k-1}``, becomes ``h'_k = P_{k-1} h_k P_{k-1}^{-1}``.  As
+        ``P_{k-1}^{-1} P_k = t_k - h_k`` and ``(s - h)(t^0 - h) = (t^0 s - 1) - (t^0 + s) h``,
+
+            prod (s_k - h'_k) ~ prod (t_k - h_k) P_n^{-1},   t_k = (t^0_k s_k - 1) / (t^0_k + s_k),
+
+        with ``P_n`` real: the new joint values ``s_k = (1 + t^0_k t_k) / (t^0_k - t_k)`` (the
+        cotangent of the angle turned from ``t^0_k``) are real Moebius maps of the old ones.
+        They fix ``+-I``, send ``t_k = t^0_k`` to ``s_k = inf``, and keep bonds, local distances
+        and connections.  A joint with ``t^0_k = inf`` keeps its value.  The axes ``h_1`` and
+        ``h_n`` stay where they are: both lie on the base link ``o_n``.
+
+        Parameters
+        ----------
+        joints
+            A real configuration ``(t_1, ..., t_n)`` (``inf`` allowed); exact numbers keep the
+            axes exact.
+
+        Raises
+        ------
+        ValueError
+            If ``joints`` has the wrong length, a non-real entry, or is not a configuration
+            (the product is not a nonzero real number).
+        """
+        if len(joints) != self.n:
+            raise ValueError(f"joints must have n = {self.n} entries; got {len(joints)}")
+        for k, t in enumerate(joints):
+            if not _joint_inf(t) and sympy.im(sympy.sympify(t)) != 0:
+                raise ValueError(f"joints[{k}] = {t} is not real; a pose of the linkage needs real joint values")
+        data = "float" if any(isinstance(t, float) and not _joint_inf(t) for t in joints) else self.data
+        prod = self.closure(joints)
+        if not all(_is_zero(e, data) for e in prod.coefficients[1:]) or _is_zero(prod[0], data):
+            raise ValueError(f"joints = {tuple(joints)} is not a configuration: prod (t_k - h_k) = {prod} is not real")
+        pose = DualQuaternion.scalar(sympy.Integer(1) if data != "float" else 1.0)
+        axes = []
+        for t, h in zip(joints, self.axes):
+            axes.append((pose * h * pose.inverse()).map(sympy.expand if data != "float" else float))
+            if not _joint_inf(t):
+                pose = pose * (t - h)
+        return RevoluteChain(axes)
+
     def _check_closure_identically(self, curve: ConfigurationCurve) -> None:
         """``prod (a_k + b_k w - c_k h_k)`` has zero vector and dual parts modulo ``w^2 = g``."""
         prod = DualQuaternion.scalar(sympy.Integer(1))
