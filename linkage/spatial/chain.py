@@ -334,7 +334,11 @@ class RevoluteChain:
         candidate component is checked against the closure condition exactly.
 
         Exact (rational) axes are required.  For ``n = 7`` pass ``curve=`` to the
-        constructor (e.g. from :func:`motion_factorization`).
+        constructor (e.g. from :func:`motion_factorization`): with one joint fixed, a 7R
+        with generic axes has the 16 configurations of a 6R's inverse kinematics
+        (``tests/test_spatial_seven.py`` finds them by elimination), so its curve is a
+        16-fold cover of each joint's line, not a double cover that the normal form of
+        :class:`ConfigurationCurve` could hold.
 
         Raises
         ------
@@ -361,8 +365,11 @@ class RevoluteChain:
             )
         if self.n > 6:
             raise NotImplementedError(
-                f"configuration curves by elimination are implemented for n = 4, 5, 6; got n = {self.n}: "
-                "pass curve= (e.g. built by motion polynomial factorisation)"
+                f"configuration curves by elimination are implemented for n = 4, 5, 6; got n = {self.n}. "
+                "A 7R with generic axes takes each value of a joint at 16 configurations (the inverse kinematics "
+                "of the 6R left when that joint is fixed), so its curve covers every joint's line 16 times and "
+                "has no normal form t_k = (a_k + b_k w)/c_k, w^2 = g(t) in a joint: pass curve= with a "
+                "parametrisation (e.g. built by motion polynomial factorisation)"
             )
         if not self.exact:
             raise NotImplementedError(
