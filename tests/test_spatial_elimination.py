@@ -8,6 +8,7 @@ import pytest
 import sympy
 
 from linkage.spatial import ConfigurationCurve, DualQuaternion, RevoluteChain
+from linkage.spatial.elimination import UnparametrisedComponentError, candidate_curves_5r
 from linkage.spatial.examples import example_11_axes, example_12, goldberg_5r
 
 s = sympy.Symbol("s")
@@ -38,8 +39,9 @@ def test_example_12_curve_by_elimination_is_the_printed_one():
 
 # A 6R that moves as a Goldberg 5R while its extra joint stays at the identity (t_k = inf all
 # along): the extra axis e is welded in anywhere.  At joints 3 and 4 the eliminant's null vector
-# (t3 t4, t3, t4, 1) has last entry 0 there; at joints 5 and 6 the component projects to a line
-# at infinity of the (t5, t6) plane.  Both used to come out as "rigid".
+# (t3 t4, t3, t4, 1) has last entry 0 there, at joints 1 and 2 the coordinates
+# (t1 t2, -t2, -t1, 1) in L_12 do; at joints 5 and 6 the component lies over a line at
+# infinity of the (t5, t6) plane.  All of them used to come out as "rigid".
 EXTRA_AXIS = DualQuaternion.from_line([1, 2, -1], [sympy.Rational(2, 7), sympy.Rational(3, 7), sympy.Rational(6, 7)])
 
 
@@ -87,3 +89,31 @@ def test_a_joint_at_rest_among_the_last_two_is_found_by_renumbering():
 def test_a_joint_at_rest_anywhere(k):
     goldberg, chain = goldberg_with_a_resting_joint(k)
     check_goldberg_motion_with_joint_k_at_rest(goldberg, chain, k)
+
+
+@pytest.mark.parametrize("consistent", [True, False])
+def test_a_component_refused_in_one_numbering_must_lie_on_the_curve_found_in_another(consistent):
+    """The elimination of the Goldberg 5R as numbered is made to refuse a component: if its
+    equation in (t4, t5) holds on the curve found from joint 2 on, that curve stands; if not, the
+    chain refuses rather than return part of the configuration set."""
+    goldberg = goldberg_5r()[2]
+    y, x = sympy.symbols("y x")  # t_4, t_5, as in candidate_curves_5r
+    e = goldberg.configuration_curve().expressions()
+    t = sympy.Symbol("t")
+    (n4, d4), (n5, d5) = (sympy.fraction(sympy.cancel(e[k])) for k in (3, 4))
+    relation = sympy.resultant(sympy.expand(n4 - y * d4), sympy.expand(n5 - x * d5), t)
+    assert sympy.degree(relation, x) > 0 and sympy.degree(relation, y) > 0
+    factor = relation if consistent else x - y - 7
+
+    def refusing_as_numbered(axes):
+        if tuple(axes) == goldberg.axes:
+            raise UnparametrisedComponentError("the configuration set has a component (made up)", factor, (y, x))
+        return candidate_curves_5r(axes)
+
+    chain = RevoluteChain(goldberg.axes)
+    if consistent:
+        curve = chain._closing_component(refusing_as_numbered)
+        RevoluteChain(goldberg.axes, curve=curve)
+    else:
+        with pytest.raises(NotImplementedError, match="does not contain that component"):
+            chain._closing_component(refusing_as_numbered)

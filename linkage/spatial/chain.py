@@ -23,7 +23,13 @@ import sympy
 from .curve import INF, T, W, ConfigurationCurve, Place, to_mpc
 from .coupling import coupling_space, pose_product
 from .dualquat import DualQuaternion
-from .elimination import ReducibleCurveError, RigidLinkageError, candidate_curves_5r, candidate_curves_6r
+from .elimination import (
+    ReducibleCurveError,
+    RigidLinkageError,
+    UnparametrisedComponentError,
+    candidate_curves_5r,
+    candidate_curves_6r,
+)
 from .factorization import motion_factorization
 from .series import WORKING_DIGITS, PrecisionExhausted, Series
 
@@ -389,17 +395,19 @@ class RevoluteChain:
         parametrise one (``NotImplementedError``), the chain is numbered cyclically from
         joint ``2, 3, ..., n`` in turn: ``prod (t_k - h_k)`` is real exactly when its
         cyclic shifts are (they are conjugate to it), so a curve of the shifted chain is
-        one of this chain with its joints renumbered back.  A component on which a joint
-        stays at the identity (``t_k = inf``) or covers its line more than twice is then
-        parametrised by other joints.
+        one of this chain with its joints renumbered back.  A component on which one of the
+        last two joints stays at the identity (``t_k = inf``) or that covers their lines more
+        than twice is then parametrised by other joints.  A component refused in one
+        numbering must lie on a curve found in another (its equation is checked there);
+        otherwise the refusal stands.
         """
-        refusal: NotImplementedError | None = None
+        refusals: list[tuple[int, UnparametrisedComponentError]] = []
         comps: list[ConfigurationCurve] = []
         for shift in range(self.n):
             try:
                 found = candidates(self.axes[shift:] + self.axes[:shift])
-            except NotImplementedError as err:
-                refusal = refusal or err
+            except UnparametrisedComponentError as err:
+                refusals.append((shift, err))
                 continue
             comps = []
             for curve in (_renumbered(c, shift) for c in found):
@@ -410,8 +418,14 @@ class RevoluteChain:
                 comps.append(curve)
             if comps:
                 break
-        if not comps and refusal is not None:
-            raise NotImplementedError(f"{refusal} (in each of the {self.n} cyclic numberings of the joints)")
+        if not comps and refusals:
+            raise NotImplementedError(f"{refusals[0][1]} (in each of the {self.n} cyclic numberings of the joints)")
+        for shift, refused in refusals:  # a component refused in another numbering must be among those found
+            if not any(_contains_component(c, refused, shift) for c in comps):
+                raise NotImplementedError(
+                    f"{refused} (numbered from joint {shift + 1}); the curve found in another numbering of the "
+                    "joints does not contain that component"
+                )
         if not comps:
             raise RigidLinkageError(
                 "the chain is rigid: the closure equations have no common curve component "
@@ -873,6 +887,31 @@ def _renumbered(curve: ConfigurationCurve, shift: int) -> ConfigurationCurve:
     back = [(k - shift) % curve.n for k in range(curve.n)]
     a, b, c = ([p[k].as_expr() for k in back] for p in (curve.a, curve.b, curve.c))
     return ConfigurationCurve(a, b, c, None if curve.g is None else curve.g.as_expr())
+
+
+def _contains_component(curve: ConfigurationCurve, err: UnparametrisedComponentError, shift: int) -> bool:
+    """The refused component's equation holds along ``curve`` (at real and complex sample points).
+
+    The equation is in the last two joints of the chain numbered from joint ``shift + 1``;
+    it must vanish to ``1e-8`` of the size of its terms at three points or more of ``curve``
+    where those joints are finite.
+    """
+    n = curve.n
+    i, j = (n - 2 + shift) % n, (n - 1 + shift) % n
+    poly = sympy.Poly(err.factor, *err.variables)
+    checked = 0
+    for t in (0.37, -1.21, 2.3, 0.83 + 0.41j, -0.55 - 1.7j):
+        for branch in (1, -1):
+            p = curve(t, branch)
+            a, b = p[i], p[j]
+            if not (np.isfinite(a) and np.isfinite(b)):
+                continue
+            value = sum(complex(c) * a**k * b**m for (k, m), c in poly.terms())
+            size = sum(abs(complex(c)) * abs(a) ** k * abs(b) ** m for (k, m), c in poly.terms())
+            if abs(value) > 1e-8 * size:
+                return False
+            checked += 1
+    return checked >= 3
 
 
 def _joint_inf(t: Any) -> bool:

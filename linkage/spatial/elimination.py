@@ -21,6 +21,7 @@ the spurious factors (``t_k^2 + 1``, the locus where ``P A = P A h_3 = 0``).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import sympy
@@ -28,7 +29,13 @@ import sympy
 from .curve import T, W, ConfigurationCurve
 from .dualquat import DualQuaternion
 
-__all__ = ["ReducibleCurveError", "RigidLinkageError", "candidate_curves_5r", "candidate_curves_6r"]
+__all__ = [
+    "ReducibleCurveError",
+    "RigidLinkageError",
+    "UnparametrisedComponentError",
+    "candidate_curves_5r",
+    "candidate_curves_6r",
+]
 
 
 class RigidLinkageError(ValueError):
@@ -79,6 +86,8 @@ def candidate_curves_5r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
                 _closes_somewhere_5r(f, y, x, axes, coords),
                 f"a component with joint {5 if dy == 0 else 4} fixed ({f} = 0), which cannot be parametrised by "
                 "the other joint",
+                f,
+                (y, x),
             )
             continue  # spurious (t_k = +-I, where the product has zero norm, and the like)
         # parametrise by the joint in which f is linear if there is one (a rational curve), else by t_5
@@ -96,13 +105,19 @@ def candidate_curves_5r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
         pa_s, pb_s = pa.subs({y: t4, x: t5}), pb.subs({y: t4, x: t5})
         k = next((k for k in range(8) if sympy.simplify(pa_s[k]) != 0), None)
         if k is None:
-            _refuse_if_closing(_closes_somewhere_5r(f, y, x, axes, coords), f"the component {f} = 0 (P A vanishes on it)")
+            _refuse_if_closing(
+                _closes_somewhere_5r(f, y, x, axes, coords), f"the component {f} = 0 (P A vanishes on it)", f, (y, x)
+            )
             continue
         t3 = sympy.together(-pb_s[k] / pa_s[k])
         z = a.subs({y: t4, x: t5}) * t3 + b.subs({y: t4, x: t5})
         alpha = coords * z
-        t1 = sympy.together(-alpha[2] / alpha[3])
-        t2 = sympy.together(-alpha[1] / alpha[3])
+        # alpha ~ (t1 t2, -t2, -t1, 1); alpha_3 = 0 where t1 or t2 rests at inf, and then
+        # t1 = -alpha_0/alpha_1, t2 = -alpha_0/alpha_2 hold instead
+        if sympy.cancel(alpha[3]) == 0:
+            t1, t2 = sympy.together(-alpha[0] / alpha[1]), sympy.together(-alpha[0] / alpha[2])
+        else:
+            t1, t2 = sympy.together(-alpha[2] / alpha[3]), sympy.together(-alpha[1] / alpha[3])
         joints = [t1, t2, t3, t4, t5]
         try:
             if g_w is None:
@@ -110,7 +125,7 @@ def candidate_curves_5r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
             else:
                 curves.append(ConfigurationCurve.hyperelliptic(joints, g_w))
         except (ValueError, ZeroDivisionError) as err:
-            _refuse_if_closing(_closes_somewhere_5r(f, y, x, axes, coords), f"the component {f} = 0 ({err})")
+            _refuse_if_closing(_closes_somewhere_5r(f, y, x, axes, coords), f"the component {f} = 0 ({err})", f, (y, x))
             continue  # a degenerate formula on a spurious factor
     return curves
 
@@ -170,7 +185,7 @@ def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
                 if dx == 0 or dy == 0
                 else f"a component of degree {dx} in t_5 and {dy} in t_6, a double cover of neither joint's line"
             )
-            _refuse_if_closing(_closes_somewhere(f, x, y, m, coords, axes), what)
+            _refuse_if_closing(_closes_somewhere(f, x, y, m, coords, axes), what, f, (x, y))
             continue  # spurious: the closure fails at generic points over this factor
         solved, param = (x, y) if dx <= dy else (y, x)
         poly = sympy.Poly(f.subs(param, T), solved)
@@ -187,7 +202,7 @@ def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
         column = next((adjugate.col(k) for k in range(4) if not _vanishes_on(adjugate.col(k), f, x, y)), None)
         if column is None:  # M has a null space of dimension 2 or more all along f = 0
             _refuse_if_closing(
-                _closes_somewhere(f, x, y, m, coords, axes), f"the component {f} = 0 (M has rank 2 or less on it)"
+                _closes_somewhere(f, x, y, m, coords, axes), f"the component {f} = 0 (M has rank 2 or less on it)", f, (x, y)
             )
             continue
         v = field.homogenised(list(column), solved, param, num, den)
@@ -204,23 +219,42 @@ def candidate_curves_6r(axes: Sequence[DualQuaternion]) -> list[ConfigurationCur
             factor = DualQuaternion([n_ if k == 0 else field.poly(0) for k in range(8)]) + h.map(field.poly) * d_
             z = (z * factor).map(field.reduce)
         alpha = [sum((coords[r, c] * z[c] for c in range(8)), field.poly(0)) for r in range(4)]
-        t1, t2 = field.ratio(-alpha[2], alpha[3]), field.ratio(-alpha[1], alpha[3])
+        # alpha ~ (t1 t2, -t2, -t1, 1): where t1 or t2 rests at inf, alpha_3 = 0 and the other quotients hold
+        if field.reduce(alpha[3]).is_zero:
+            t1, t2 = field.ratio(-alpha[0], alpha[1]), field.ratio(-alpha[0], alpha[2])
+        else:
+            t1, t2 = field.ratio(-alpha[2], alpha[3]), field.ratio(-alpha[1], alpha[3])
         t5 = (T, one) if solved == y else field.ratio(num, den)
         t6 = (T, one) if solved == x else field.ratio(num, den)
         joints = [t1, t2, t3, t4, t5, t6]
         try:
             curves.append(field.curve(joints))
         except (ValueError, ZeroDivisionError) as err:
-            _refuse_if_closing(_closes_somewhere(f, x, y, m, coords, axes), f"the component {f} = 0 ({err})")
+            _refuse_if_closing(_closes_somewhere(f, x, y, m, coords, axes), f"the component {f} = 0 ({err})", f, (x, y))
             continue
     return curves
 
 
-def _refuse_if_closing(closes: bool, what: str) -> None:
-    """Raise ``NotImplementedError`` for a factor that carries configurations but no candidate."""
+class UnparametrisedComponentError(NotImplementedError):
+    """A curve component of the configuration set that the elimination cannot parametrise.
+
+    ``factor`` is its equation in the last two joint coordinates, the sympy symbols
+    ``variables = (t_{n-1}, t_n)``.
+    """
+
+    def __init__(self, message: str, factor: Any, variables: tuple):
+        super().__init__(message)
+        self.factor = factor
+        self.variables = variables
+
+
+def _refuse_if_closing(closes: bool, what: str, factor: Any, variables: tuple) -> None:
+    """Raise for a factor that carries configurations but no candidate."""
     if closes:
-        raise NotImplementedError(
-            f"the configuration set has {what}; it cannot be parametrised here: pass curve= with a parametrisation"
+        raise UnparametrisedComponentError(
+            f"the configuration set has {what}; it cannot be parametrised here: pass curve= with a parametrisation",
+            factor,
+            variables,
         )
 
 
@@ -264,9 +298,7 @@ def _closes_somewhere_5r(f, y, x, axes: Sequence[DualQuaternion], coords: sympy.
             continue
         t3 = -np.vdot(pa, pb) / np.vdot(pa, pa)
         alpha = cf @ (a * t3 + b)
-        if abs(alpha[3]) < 1e-12 * np.max(np.abs(alpha)):
-            continue
-        if _closure_holds([-alpha[2] / alpha[3], -alpha[1] / alpha[3], t3, t4, t5], axes):
+        if _closure_holds([*_first_two_joints(alpha), t3, t4, t5], axes):
             return True
     return False
 
@@ -291,8 +323,7 @@ def _closes_somewhere(f, x, y, m: sympy.Matrix, coords: sympy.Matrix, axes: Sequ
             pair4, pair3 = ((v[2], v[3]), (v[1], v[3])) if abs(v[3]) > 1e-9 else ((v[0], v[1]), (v[0], v[2]))
             z = z * (pair4[0] + pair4[1] * h[3]) * (pair3[0] + pair3[1] * h[2])
             alpha = coords_f @ np.array(list(z), dtype=complex)
-            joints = [_quotient(-alpha[2], alpha[3]), _quotient(-alpha[1], alpha[3])]
-            joints += [_quotient(*pair3), _quotient(*pair4), t5, t6]
+            joints = [*_first_two_joints(alpha), _quotient(*pair3), _quotient(*pair4), t5, t6]
             if _closure_holds(joints, axes):
                 return True
     return False
@@ -319,6 +350,13 @@ def _segre_null_vectors(mm: np.ndarray) -> list[np.ndarray]:
     if abs(segre(q, q)) < 1e-12:  # a root at s = inf
         out.append(q)
     return [v / np.linalg.norm(v) for v in out]
+
+
+def _first_two_joints(alpha: np.ndarray) -> list[complex]:
+    """``t_1, t_2`` from the coordinates ``alpha ~ (t1 t2, -t2, -t1, 1)`` in ``L_12`` (``inf`` allowed)."""
+    if abs(alpha[3]) > 1e-9 * np.max(np.abs(alpha)):
+        return [-alpha[2] / alpha[3], -alpha[1] / alpha[3]]
+    return [_quotient(-alpha[0], alpha[1]), _quotient(-alpha[0], alpha[2])]
 
 
 def _quotient(num: complex, den: complex) -> complex:
