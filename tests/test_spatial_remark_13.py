@@ -169,3 +169,16 @@ def test_reposed_refuses_a_point_that_is_not_a_configuration():
         chain.reposed((R(1), R(2), R(1)))
     with pytest.raises(ValueError, match=r"joints\[1\] .* is not real"):
         chain.reposed((R(1), 2 + 1j, R(1), R(-2)))
+
+
+def test_reposed_at_a_numerical_configuration_point():
+    """A float configuration from ``configuration_point`` (complex dtype, zero imaginary parts)
+    gives float axes; the old home pose, ``t_k = inf``, is ``s_k = -t^0_k`` in the new chain."""
+    chain = linkage("Example 1 (Bennett)")
+    home = chain.configuration_point(2.3, joint=2, guess=[1.3, 2.3, 1.3, -2.3])
+    moved = chain.reposed(home)
+    assert moved.data == "float"
+    old_home = moved.closure([-z.real for z in home])
+    assert max(abs(x) for x in old_home.coefficients[1:]) <= 1e-12 * abs(old_home[0])
+    off = moved.closure([-z.real + 0.1 for z in home])
+    assert max(abs(x) for x in off.coefficients[1:]) > 1e-3 * abs(off[0])  # the check can fail

@@ -232,9 +232,16 @@ class RevoluteChain:
         """
         if len(joints) != self.n:
             raise ValueError(f"joints must have n = {self.n} entries; got {len(joints)}")
+        values = []
         for k, t in enumerate(joints):
-            if not _joint_inf(t) and sympy.im(sympy.sympify(t)) != 0:
+            if isinstance(t, complex) and not _joint_inf(t):  # e.g. from configuration_point
+                if abs(t.imag) > AXIS_TOL * max(1.0, abs(t)):
+                    raise ValueError(f"joints[{k}] = {t} is not real; a pose of the linkage needs real joint values")
+                t = t.real
+            elif not _joint_inf(t) and sympy.im(sympy.sympify(t)) != 0:
                 raise ValueError(f"joints[{k}] = {t} is not real; a pose of the linkage needs real joint values")
+            values.append(t)
+        joints = values
         data = "float" if any(isinstance(t, float) and not _joint_inf(t) for t in joints) else self.data
         prod = self.closure(joints)
         if not all(_is_zero(e, data) for e in prod.coefficients[1:]) or _is_zero(prod[0], data):
