@@ -1,0 +1,131 @@
+"""``free_motions`` against heyoka's bare batch mode on the same compiled equations, and against a serial loop.
+
+Run ``python -m benchmarks.ensemble_simd [--n 4 8] [--count 64] [--T 20] [--rounds 5]``.
+
+For each ``n``: ``--count`` unit-speed starts of the chain ``L = n - 1.4`` over ``T``, hinge
+method, float64, default tolerance and compile options, no dense output.  Rows:
+
+* ``bare batch``: heyoka's ``taylor_adaptive_batch`` of the very equations ``free_motions``
+  integrates (borrowed from the same compiled store), ``heyoka.recommended_simd_size()`` lanes,
+  states set from the already completed starts and ``propagate_until(T)``, batch after batch:
+  no start checks, no energy or constraint checks, no per-lane status.  The floor.
+* ``free_motions serial``: the whole call (start checks, completion to the constraints, batches,
+  energy and constraint checks, per-lane status), one thread.
+* ``bare scalar loop``: heyoka's scalar integrator of the same equations, one start after the other
+  (``propagate_until``), the serial loop a user of heyoka would write.
+* ``free_motion loop``: a Python loop of ``free_motion(..., dense=False)`` calls.
+* ``free_motions threads``: as ``serial`` on the threads backend (wall time: the CPU time of
+  threads adds up over cores).
+
+Times are this process's CPU time (``time.process_time``; wall time for the threads row), every
+method warmed up first (compiles excluded), the methods interleaved round by round, the minimum
+of ``--rounds`` rounds kept.  Printed side by side: each row's time, bare batch / row (the
+target for ``free_motions serial`` is at least 0.8), row / bare batch, and free_motions serial's
+speed-up over the loops (the target on 8 lanes is 6x, about 3x on 4).  Each row's end states are
+checked against the ``free_motion`` loop.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from collections.abc import Callable
+
+import heyoka as hy
+import numpy as np
+
+from linkage import Chain
+from linkage.constraints import ChainSystem, start_states
+from linkage.motion import free_motion, free_motions
+from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
+
+from .ensemble_speed import starts
+
+
+def bare(chain: Chain, H: np.ndarray, V: np.ndarray, T: float, lanes: int) -> Callable[[], np.ndarray]:
+    """heyoka alone on the compiled equations of ``free_motions``: ``lanes`` per integrator (1: scalar)."""
+    system = ChainSystem(chain)
+    _, X0, V0, _ = start_states(chain, H, V, T, 1e-9, False)
+    geo = ConstrainedGeometry(system, float)
+    X, W, _, alpha = geo.start(X0, V0, T, 1.0)
+    comp = compiled_constrained(system)
+    compact = default_compact_mode(system, float)
+    pars = np.repeat(comp.layout.pack(system, 0.0, float)[:, None], len(X), axis=1)
+    pars[0] = alpha
+    start = np.concatenate([X, W], axis=1)
+
+    def run() -> np.ndarray:
+        ends = np.empty_like(start)
+        if lanes == 1:
+            with comp.integrator(float, None, True, compact) as ta:
+                for k in range(len(start)):
+                    ta.time = 0.0
+                    ta.state[:] = start[k]
+                    ta.pars[:] = pars[: len(ta.pars), k]
+                    ta.propagate_until(T)
+                    ends[k] = ta.state
+            return ends[:, :geo.N]
+        with comp.batch_integrator(lanes, None, compact) as ta:
+            for i in range(0, len(start), lanes):
+                fill = [min(k, len(start) - 1) for k in range(i, i + lanes)]
+                ta.set_time(0.0)
+                ta.state[:] = start[fill].T
+                ta.pars[:] = pars[: len(ta.pars), fill]
+                ta.propagate_until(T)
+                ends[i: i + lanes] = ta.state.T[: len(start) - i]
+        return ends[:, :geo.N]
+    return run
+
+
+def measure(n: int, count: int, T: float, rounds: int) -> dict[str, float]:
+    chain = Chain(n, n - 1.4)
+    H, V = starts(chain, count)
+    lanes = hy.recommended_simd_size()
+    rows: dict[str, tuple[Callable[[], np.ndarray], bool]] = {
+        "bare batch": (bare(chain, H, V, T, lanes), False),
+        "free_motions serial": (lambda: free_motions(chain, H, V, T).solution.end_points, False),
+        "bare scalar loop": (bare(chain, H, V, T, 1), False),
+        "free_motion loop": (lambda: np.array([free_motion(chain, h, v, T, method="hinges", dense=False)
+                                               .solution.end_state()[0].astype(float) for h, v in zip(H, V)]), False),
+        "free_motions threads": (lambda: free_motions(chain, H, V, T, backend="threads").solution.end_points, True),
+    }
+    ends = {name: fn() for name, (fn, _) in rows.items()}  # warm-up: compiles, caches
+    best = dict.fromkeys(rows, np.inf)
+    for _ in range(rounds):
+        for name, (fn, wall) in rows.items():
+            clock = time.perf_counter if wall else time.process_time
+            t0 = clock()
+            fn()
+            best[name] = min(best[name], clock() - t0)
+    reference = ends["free_motion loop"]
+    floor = best["bare batch"]
+    print(f"n = {n}: {count} starts, T = {T:g}, {lanes} lanes, compact mode "
+          f"{default_compact_mode(ChainSystem(chain), float)}")
+    print(f"  {'':22s} {'time ms':>9s} {'bare batch / it':>16s} {'it / bare batch':>16s}  max |x - loop|")
+    for name in rows:
+        gap = float(np.max(np.abs(ends[name] - reference)))
+        print(f"  {name:22s} {1e3 * best[name]:9.2f} {floor / best[name]:16.2f} {best[name] / floor:16.2f}  {gap:.1e}")
+    serial = best["free_motions serial"]
+    print(f"  free_motions serial: {floor / serial:.2f}x bare batch (target >= 0.8); "
+          f"{best['bare scalar loop'] / serial:.2f}x the bare scalar loop, "
+          f"{best['free_motion loop'] / serial:.2f}x the free_motion loop (target 6x on 8 lanes); "
+          f"threads on {len(os.sched_getaffinity(0))} cores: {serial / best['free_motions threads']:.2f}x serial (wall)")
+    return best
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, nargs="+", default=[4, 8])
+    ap.add_argument("--count", type=int, default=64)
+    ap.add_argument("--T", type=float, default=20.0)
+    ap.add_argument("--rounds", type=int, default=5)
+    args = ap.parse_args(argv)
+    print(f"heyoka {hy.__version__}, {hy.recommended_simd_size()} SIMD lanes; CPU time per process, interleaved, "
+          f"min of {args.rounds} rounds")
+    for n in args.n:
+        measure(n, args.count, args.T, args.rounds)
+
+
+if __name__ == "__main__":
+    main()
