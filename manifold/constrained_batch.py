@@ -27,10 +27,11 @@ import heyoka as hy
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, default_compact_mode, verdict
+from .constrained import (ConstrainedGeometry, ConstrainedSystem, compiled_constrained, constraint_bound,
+                          default_compact_mode, verdict)
 from .ensemble import EnsembleSolution, chunk_bounds, default_chunk_size, run_chunks
 from .progress import ProgressArgument
-from .solution import energy_violation
+from .solution import energy_bound, energy_violation
 from .steppers import MAX_TOLERANCE, taylor_relative_tolerance
 from .validation import check_bool, check_positive_int, check_real, check_time_grid, real_array
 
@@ -166,18 +167,28 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
     checked = np.concatenate([states[:, 1:], ends[:, None]], axis=1)
     c, _, _, E = geo(checked[..., :dim].reshape(-1, dim), checked[..., dim:].reshape(-1, dim))
     deviations = np.abs(E.reshape(n, -1) - E0[:, None]) / E0[:, None]
-    drift = np.max(np.abs(c), axis=1).reshape(n, -1)
+    drifts = np.max(np.abs(c), axis=1).reshape(n, -1)
+    # the grid times each trajectory reached, and its end (a NaN t_reached compares false: only the end)
+    reached = np.concatenate([np.abs(times[1:]) <= np.abs(t_reached)[:, None], np.ones((n, 1), dtype=bool)], axis=1)
+    errors = np.max(np.where(reached, deviations, -np.inf), axis=1)  # NaN stays NaN
+    drift = np.max(np.where(reached, drifts, -np.inf), axis=1)
     eps = taylor_relative_tolerance(tol, float)
+    # the lanes that pass every check of verdict() at once; the others get verdict's own sentence one by one
+    passed = (np.array([f is None for f in failure])
+              & np.all(~reached | (deviations <= [[energy_bound(int(s), eps)] for s in steps]), axis=1)
+              & (drift <= [constraint_bound(int(s), eps) for s in steps]))
+    success = verdict(None, 0.0, 0, eps, t_final, None)
     status, messages = [], []
     for k in range(n):
-        rows = np.append(np.abs(times[1:]) <= abs(t_reached[k]), True)  # NaN t_reached: only the end
-        s, m = verdict(energy_violation(deviations[k, rows], np.append(times[1:], t_reached[k])[rows],
-                                        int(steps[k]), eps, "ambient coordinates"),
-                       float(np.max(drift[k, rows])), int(steps[k]), eps, float(t_reached[k]), failure[k])
+        if passed[k]:
+            s, m = success
+        else:
+            checked_times = np.append(times[1:], t_reached[k])[reached[k]]
+            s, m = verdict(energy_violation(deviations[k, reached[k]], checked_times, int(steps[k]), eps,
+                                            "ambient coordinates"),
+                           float(drift[k]), int(steps[k]), eps, float(t_reached[k]), failure[k])
         status.append(s)
         messages.append(m)
-    errors = np.array([np.max(deviations[k, np.append(np.abs(times[1:]) <= abs(t_reached[k]), True)])
-                       for k in range(n)])
     return EnsembleSolution(
         METHOD, t_final, grid, ends[:, :dim], ends[:, dim:], t_reached, steps, errors, status, messages,
         None if grid is None else states[:, position, :dim],
@@ -204,11 +215,14 @@ def _run_batch(ta: Any, lanes: list[int], X: NDArray, V: NDArray, pars: NDArray,
         ta.state[:] = np.concatenate([X[fill].T, V[fill].T])
         ta.pars[:] = pars[: len(ta.pars), fill]
         _, out = ta.propagate_grid(np.ascontiguousarray(np.repeat(times[:, None], B, axis=1)))
+        m, results = len(live), ta.propagate_res[: len(live)]  # a new list at each read: read once
+        outcomes = [res[0] for res in results]
+        steps[live] = [res[3] for res in results]
+        t_reached[live] = ta.time[:m]
+        states[live] = np.moveaxis(out[:, :, :m], 2, 0)
+        ends[live] = ta.state[:, :m].T
         rerun = []
-        for lane, k in enumerate(live):
-            outcome, _, _, steps[k] = ta.propagate_res[lane]
-            t_reached[k] = ta.time[lane]
-            states[k], ends[k] = out[:, :, lane], ta.state[:, lane]
+        for outcome, k in zip(outcomes, live):
             if outcome == hy.taylor_outcome.time_limit and t_reached[k] == times[-1]:
                 continue
             if outcome.name.startswith("err"):
@@ -218,6 +232,6 @@ def _run_batch(ta: Any, lanes: list[int], X: NDArray, V: NDArray, pars: NDArray,
                 rerun.append(k)
         if len(rerun) == len(live):  # nobody failed, nobody finished: nothing would change on a rerun
             for k in rerun:
-                failure[k] = f"stopped before t_final ({ta.propagate_res[live.index(k)][0]})"
+                failure[k] = f"stopped before t_final ({outcomes[live.index(k)]})"
             return
         live = rerun
