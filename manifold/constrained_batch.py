@@ -31,11 +31,11 @@ from .constrained import (ConstrainedGeometry, ConstrainedSystem, compiled_const
                           default_compact_mode, verdict)
 from .ensemble import EnsembleSolution, chunk_bounds, default_chunk_size, run_chunks
 from .progress import ProgressArgument
-from .solution import energy_bound, energy_violation
+from .solution import SolveStatus, energy_bound, energy_violation
 from .steppers import MAX_TOLERANCE, taylor_relative_tolerance
 from .validation import check_bool, check_positive_int, check_real, check_time_grid, real_array
 
-__all__ = ["solve_constrained_chunk", "solve_constrained_ensemble"]
+__all__ = ["judge_lanes", "solve_constrained_chunk", "solve_constrained_ensemble"]
 
 #: Batch sizes up to this many times heyoka's SIMD width are taken: wider batches only cost compile time and memory.
 MAX_BATCH_LANES = 4
@@ -168,16 +168,47 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
     c, _, _, E = geo(checked[..., :dim].reshape(-1, dim), checked[..., dim:].reshape(-1, dim))
     deviations = np.abs(E.reshape(n, -1) - E0[:, None]) / E0[:, None]
     drifts = np.max(np.abs(c), axis=1).reshape(n, -1)
-    # the grid times each trajectory reached, and its end (a NaN t_reached compares false: only the end)
+    errors, status, messages = judge_lanes(deviations, drifts, times, t_reached, steps,
+                                           taylor_relative_tolerance(tol, float), failure)
+    return EnsembleSolution(
+        METHOD, t_final, grid, ends[:, :dim], ends[:, dim:], t_reached, steps, errors, status, messages,
+        None if grid is None else states[:, position, :dim],
+        None if grid is None else states[:, position, dim:], batch_size=batch_size)
+
+
+def judge_lanes(deviations: NDArray, drifts: NDArray, times: NDArray, t_reached: NDArray, steps: NDArray,
+                eps: float, failure: list[str | None]) -> tuple[NDArray, list[SolveStatus], list[str]]:
+    """Every lane judged as a single solve is judged (:func:`~manifold.constrained.verdict`), on its checked states.
+
+    Parameters
+    ----------
+    deviations, drifts
+        ``|E - E0| / E0`` and ``max_k |c_k|`` per lane (rows) at ``times[1:]`` and then at the lane's end (columns).
+    times
+        heyoka's grid, from 0 to ``t_final``.
+    t_reached, steps
+        Per lane: the time reached (NaN if unknown) and the steps taken.
+    eps
+        The relative tolerance.
+    failure
+        Per lane: why the integrator stopped early, ``None`` if it did not.
+
+    Returns
+    -------
+    tuple
+        ``(errors, status, messages)``: the largest energy deviation over the grid times a lane reached and its
+        end (NaN stays NaN), and what :func:`~manifold.constrained.verdict` says of it.  Lanes that pass every
+        check are found all at once; only the others go through the checks one by one, for their sentences.
+    """
+    n = len(t_reached)
+    # the grid times each lane reached, and its end (a NaN t_reached compares false: only the end)
     reached = np.concatenate([np.abs(times[1:]) <= np.abs(t_reached)[:, None], np.ones((n, 1), dtype=bool)], axis=1)
-    errors = np.max(np.where(reached, deviations, -np.inf), axis=1)  # NaN stays NaN
+    errors = np.max(np.where(reached, deviations, -np.inf), axis=1)
     drift = np.max(np.where(reached, drifts, -np.inf), axis=1)
-    eps = taylor_relative_tolerance(tol, float)
-    # the lanes that pass every check of verdict() at once; the others get verdict's own sentence one by one
-    passed = (np.array([f is None for f in failure])
+    passed = (np.array([f is None for f in failure], dtype=bool)
               & np.all(~reached | (deviations <= [[energy_bound(int(s), eps)] for s in steps]), axis=1)
               & (drift <= [constraint_bound(int(s), eps) for s in steps]))
-    success = verdict(None, 0.0, 0, eps, t_final, None)
+    success = verdict(None, 0.0, 0, eps, float(times[-1]), None)
     status, messages = [], []
     for k in range(n):
         if passed[k]:
@@ -189,10 +220,7 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
                            float(drift[k]), int(steps[k]), eps, float(t_reached[k]), failure[k])
         status.append(s)
         messages.append(m)
-    return EnsembleSolution(
-        METHOD, t_final, grid, ends[:, :dim], ends[:, dim:], t_reached, steps, errors, status, messages,
-        None if grid is None else states[:, position, :dim],
-        None if grid is None else states[:, position, dim:], batch_size=batch_size)
+    return errors, status, messages
 
 
 def _run_batch(ta: Any, lanes: list[int], X: NDArray, V: NDArray, pars: NDArray, times: NDArray, states: NDArray,

@@ -20,7 +20,9 @@ from hypothesis import strategies as st
 from linkage import Chain
 from linkage.motion import free_motion, free_motions
 from manifold import SaveAt, SolveStatus
-from manifold.solution import energy_bound
+from manifold.constrained import constraint_bound, verdict
+from manifold.constrained_batch import judge_lanes
+from manifold.solution import energy_bound, energy_violation
 
 from .conftest import base_lengths, unit_speed_start
 
@@ -159,11 +161,43 @@ def test_a_failed_trajectory_does_not_sink_the_others():
         assert list(ens.success) == [True, True, False, True, False, True]
         assert ens.status == [s.solution.status for s in singles]  # judged by the same rules
         assert ens.messages[2] == singles[2].solution.message
+        assert [m for m, good in zip(ens.messages, ens.success) if good] == [
+            s.solution.message for s in singles if s.success]
         ok = ens.success
         assert _max_gap(_subset(ens, ok), [s for s, good in zip(singles, ok) if good]) <= 1e-12
         assert np.isnan(ens.hinges[~ok]).all() and np.isnan(ens.end_hinges[~ok]).all()
         assert np.isnan(ens.relative_energy_errors[~ok]).all()
         assert ens.n_failed == 2
+
+
+#: Multiples of a bound drawn for a checked quantity: below, at, just above and far above it, and NaN.
+_NEAR_BOUND = st.sampled_from([0.0, 0.5, 1.0 - 1e-12, 1.0, 1.0 + 1e-12, 3.0, float("nan")])
+
+
+@given(data=st.data(), lanes=st.integers(1, 6), grid=st.integers(0, 4), backward=st.booleans())
+@settings(max_examples=200)
+def test_lanes_are_judged_exactly_as_one_by_one(data, lanes, grid, backward):
+    """``judge_lanes`` finds the passing lanes all at once; it must say what ``verdict`` says of each lane alone
+    (the energy check over the grid times reached and the end, then the constraints, then the stepper)."""
+    T = -2.0 if backward else 2.0
+    times = np.linspace(0.0, T, grid + 2)
+    eps = 2.0**-52
+    steps = np.array(data.draw(st.lists(st.integers(0, 10**6), min_size=lanes, max_size=lanes)))
+    reached = data.draw(st.lists(st.sampled_from([T, 0.3 * T, 0.0, float("nan")]), min_size=lanes, max_size=lanes))
+    failure = data.draw(st.lists(st.sampled_from([None, "err_nf_state", "stopped before t_final (time_limit)"]),
+                                 min_size=lanes, max_size=lanes))
+    t_reached = np.array(reached)
+    shape = st.lists(_NEAR_BOUND, min_size=len(times), max_size=len(times))
+    deviations = np.array([[f * energy_bound(int(s), eps) for f in data.draw(shape)] for s in steps])
+    drifts = np.array([[f * constraint_bound(int(s), eps) for f in data.draw(shape)] for s in steps])
+    errors, status, messages = judge_lanes(deviations, drifts, times, t_reached, steps, eps, failure)
+    for k in range(lanes):
+        rows = np.append(np.abs(times[1:]) <= abs(t_reached[k]), True)
+        expected = verdict(energy_violation(deviations[k, rows], np.append(times[1:], t_reached[k])[rows],
+                                            int(steps[k]), eps, "ambient coordinates"),
+                           float(np.max(drifts[k, rows])), int(steps[k]), eps, float(t_reached[k]), failure[k])
+        assert (status[k], messages[k]) == expected
+        assert np.array_equal(errors[k], np.max(deviations[k, rows]), equal_nan=True)
 
 
 class _subset:
