@@ -6,9 +6,11 @@ For each ``n``: ``--count`` unit-speed starts of the chain ``L = n - 1.4`` over 
 method, float64, default tolerance and compile options, no dense output.  Rows:
 
 * ``bare batch``: heyoka's ``taylor_adaptive_batch`` of the very equations ``free_motions``
-  integrates (borrowed from the same compiled store), ``heyoka.recommended_simd_size()`` lanes,
-  states set from the already completed starts and ``propagate_until(T)``, batch after batch:
-  no start checks, no energy or constraint checks, no per-lane status.  The floor.
+  integrates (borrowed from the same compiled store), with as many lanes as ``free_motions``
+  takes by default (``heyoka.recommended_simd_size()``, twice that in compact mode), states set
+  from the already completed starts and ``propagate_until(T)``, batch after batch: no start
+  checks, no energy or constraint checks, no per-lane status.  The floor.  In compact mode also
+  at ``heyoka.recommended_simd_size()`` lanes (``bare batch, width``).
 * ``free_motions serial``: the whole call (start checks, completion to the constraints, batches,
   energy and constraint checks, per-lane status), one thread.
 * ``bare scalar loop``: heyoka's scalar integrator of the same equations, one start after the other
@@ -16,6 +18,13 @@ method, float64, default tolerance and compile options, no dense output.  Rows:
 * ``free_motion loop``: a Python loop of ``free_motion(..., dense=False)`` calls.
 * ``free_motions threads``: as ``serial`` on the threads backend (wall time: the CPU time of
   threads adds up over cores).
+
+On a machine shared with other jobs the threads row says little (Linux gives the process its
+share of the cores however many threads it runs), so the run also checks the premise of the
+threads backend directly: a pure-Python counter thread counts while ``free_motions`` runs serially
+in the main thread, and again while the main thread sleeps as long.  The first count over the
+second is the share of the run during which the GIL was free for other threads (0 if heyoka held
+it; up to 1, less where both threads share one core).
 
 Times are this process's CPU time (``time.process_time``; wall time for the threads row), every
 method warmed up first (compiles excluded), the methods interleaved round by round, the minimum
@@ -29,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import threading
 import time
 from collections.abc import Callable
 
@@ -39,6 +49,7 @@ from linkage import Chain
 from linkage.constraints import ChainSystem, start_states
 from linkage.motion import free_motion, free_motions
 from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
+from manifold.constrained_batch import DEFAULT_WIDTHS
 
 from .ensemble_speed import starts
 
@@ -78,12 +89,40 @@ def bare(chain: Chain, H: np.ndarray, V: np.ndarray, T: float, lanes: int) -> Ca
     return run
 
 
+def gil_free_share(run: Callable[[], object]) -> float:
+    """A counter thread's progress while ``run()`` works in this thread, over its progress while this thread sleeps
+    as long."""
+    stop, count = threading.Event(), [0]
+
+    def counter() -> None:
+        while not stop.is_set():
+            count[0] += 1
+
+    thread = threading.Thread(target=counter)
+    thread.start()
+    try:
+        time.sleep(0.05)
+        c0, t0 = count[0], time.perf_counter()
+        run()
+        busy, seconds = count[0] - c0, time.perf_counter() - t0
+        c1 = count[0]
+        time.sleep(seconds)
+        idle = count[0] - c1
+    finally:
+        stop.set()
+        thread.join()
+    return busy / idle
+
+
 def measure(n: int, count: int, T: float, rounds: int) -> dict[str, float]:
     chain = Chain(n, n - 1.4)
     H, V = starts(chain, count)
-    lanes = hy.recommended_simd_size()
+    width = hy.recommended_simd_size()
+    compact = default_compact_mode(ChainSystem(chain), float)
+    lanes = DEFAULT_WIDTHS[compact] * width
     rows: dict[str, tuple[Callable[[], np.ndarray], bool]] = {
         "bare batch": (bare(chain, H, V, T, lanes), False),
+        **({"bare batch, width": (bare(chain, H, V, T, width), False)} if lanes != width else {}),
         "free_motions serial": (lambda: free_motions(chain, H, V, T).solution.end_points, False),
         "bare scalar loop": (bare(chain, H, V, T, 1), False),
         "free_motion loop": (lambda: np.array([free_motion(chain, h, v, T, method="hinges", dense=False)
@@ -100,17 +139,19 @@ def measure(n: int, count: int, T: float, rounds: int) -> dict[str, float]:
             best[name] = min(best[name], clock() - t0)
     reference = ends["free_motion loop"]
     floor = best["bare batch"]
-    print(f"n = {n}: {count} starts, T = {T:g}, {lanes} lanes, compact mode "
-          f"{default_compact_mode(ChainSystem(chain), float)}")
+    print(f"n = {n}: {count} starts, T = {T:g}, {lanes} lanes (SIMD width {width}), compact mode {compact}")
     print(f"  {'':22s} {'time ms':>9s} {'bare batch / it':>16s} {'it / bare batch':>16s}  max |x - loop|")
     for name in rows:
         gap = float(np.max(np.abs(ends[name] - reference)))
         print(f"  {name:22s} {1e3 * best[name]:9.2f} {floor / best[name]:16.2f} {best[name] / floor:16.2f}  {gap:.1e}")
     serial = best["free_motions serial"]
-    print(f"  free_motions serial: {floor / serial:.2f}x bare batch (target >= 0.8); "
+    at_width = f" ({best['bare batch, width'] / serial:.2f}x at the SIMD width)" if "bare batch, width" in best else ""
+    print(f"  free_motions serial: {floor / serial:.2f}x bare batch{at_width} (target >= 0.8); "
           f"{best['bare scalar loop'] / serial:.2f}x the bare scalar loop, "
           f"{best['free_motion loop'] / serial:.2f}x the free_motion loop (target 6x on 8 lanes); "
           f"threads on {len(os.sched_getaffinity(0))} cores: {serial / best['free_motions threads']:.2f}x serial (wall)")
+    share = gil_free_share(lambda: free_motions(chain, H, V, 10 * T))
+    print(f"  GIL free for another thread during free_motions serial at T = {10 * T:g}: {share:.2f} of the idle rate")
     return best
 
 

@@ -179,7 +179,8 @@ def free_motions(
         callback of an enclosing ``manifold.progress.reporting`` block.
     batch_size
         SIMD lanes per batch integrator (hinge method in float64 only);
-        ``None``: ``heyoka.recommended_simd_size()``; 1: scalar steps.
+        ``None``: ``heyoka.recommended_simd_size()``, twice that in compact mode
+        (:data:`manifold.constrained_batch.DEFAULT_WIDTHS`); 1: scalar steps.
     chunk_size
         Trajectories per chunk of work; ``None``: four chunks per thread, one per Dask worker thread.
     tangent_tol, project_velocity

@@ -39,6 +39,11 @@ __all__ = ["judge_lanes", "solve_constrained_chunk", "solve_constrained_ensemble
 
 #: Batch sizes up to this many times heyoka's SIMD width are taken: wider batches only cost compile time and memory.
 MAX_BATCH_LANES = 4
+#: Default lanes per SIMD width, for unrolled and for compact-mode code.  A compact-mode step calls one compiled
+#: function per kind of node, and a wider batch shares those calls: 64 trajectories of T = 20 on AVX2 (4 lanes)
+#: took 0.63x (n = 6), 0.68x (n = 8) and 0.60x (n = 10) the CPU time with 8 lanes as with 4 (16 lanes: another
+#: 0.86-0.96x), while unrolled code (n = 4) gained 6 % with 8 lanes and lost with 16 (benchmarks.ensemble_simd).
+DEFAULT_WIDTHS = {False: 1, True: 2}
 
 METHOD = "constrained-taylor batch (baumgarte)"
 
@@ -84,7 +89,8 @@ def solve_constrained_ensemble(
         states are kept, for every trajectory.
     batch_size
         SIMD lanes per integrator, ``>= 1`` and at most :data:`MAX_BATCH_LANES` times
-        ``heyoka.recommended_simd_size()``; ``None``: ``heyoka.recommended_simd_size()``.
+        ``heyoka.recommended_simd_size()``; ``None``: ``heyoka.recommended_simd_size()``, twice that in
+        compact mode (:data:`DEFAULT_WIDTHS`).
     chunk_size
         Trajectories per chunk of work (rounded up to whole batches);
         ``None``: :func:`manifold.ensemble.default_chunk_size` (four per thread, one per Dask worker thread).
@@ -113,7 +119,8 @@ def solve_constrained_ensemble(
             raise ValueError(f"{name} must have shape (N, {dim}) with N >= 1 starts, got {arr.shape}")
     if x0.shape != v0.shape:
         raise ValueError(f"x0 and v0 must have the same shape, got {x0.shape} and {v0.shape}")
-    lanes = hy.recommended_simd_size() if batch_size is None else check_positive_int("batch_size", batch_size)
+    lanes = (DEFAULT_WIDTHS[compact_mode] * hy.recommended_simd_size() if batch_size is None
+             else check_positive_int("batch_size", batch_size))
     if lanes > MAX_BATCH_LANES * hy.recommended_simd_size():
         raise ValueError(f"batch_size={lanes} is beyond what SIMD makes useful: heyoka's SIMD width here is "
                          f"{hy.recommended_simd_size()}, and batch sizes up to {MAX_BATCH_LANES} times it are taken "

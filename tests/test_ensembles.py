@@ -73,7 +73,7 @@ def test_batches_threads_and_single_calls_agree():
     ts = np.array([0.0, 0.0, 3.5, 10.0, 10.0, 17.25, 20.0])  # repeated times and both ends
     singles = _singles(chain, H, V, T, ts, method="hinges", **FAST)
     runs = {}
-    # batch sizes given where backends are compared bit by bit below: the default is heyoka's SIMD width (4 on
+    # batch sizes given where backends are compared bit by bit below: the default follows heyoka's SIMD width (4 on
     # AVX2, 8 on AVX-512), and the test must not assume one
     for backend, batch_size, chunk_size in [("serial", None, None), ("serial", 1, None), ("serial", 4, None),
                                             ("threads", 4, 4), ("threads", 3, 3), ("threads", 1, 2)]:

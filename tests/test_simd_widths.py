@@ -19,7 +19,7 @@ import pytest
 from linkage import Chain
 from linkage.motion import free_motion, free_motions
 from linkage.sampling import sample_starts
-from manifold.constrained_batch import MAX_BATCH_LANES
+from manifold.constrained_batch import DEFAULT_WIDTHS, MAX_BATCH_LANES
 
 from .conftest import SIMD_WIDTH_VARIABLE
 
@@ -33,7 +33,7 @@ def test_the_default_batch_follows_the_width_and_agrees_with_single_solves(width
     monkeypatch.setattr(hy, "recommended_simd_size", lambda *args, **kwargs: width)
     H, V = sample_starts(CHAIN, 5, 0.5, np.random.default_rng(0))  # full and short batches up to 4; one of 8
     ensemble = free_motions(CHAIN, H, V, 3.0, **FAST)
-    assert ensemble.solution.batch_size == width
+    assert ensemble.solution.batch_size == DEFAULT_WIDTHS[True] * width  # compact mode: wider batches share calls
     assert ensemble.success.all(), ensemble.messages
     for k, (h, v) in enumerate(zip(H, V)):
         single = free_motion(CHAIN, h, v, 3.0, method="hinges", **FAST)
