@@ -1,6 +1,8 @@
 """``free_motions`` against heyoka's bare batch mode on the same compiled equations, and against a serial loop.
 
-Run ``python -m benchmarks.ensemble_simd [--n 4 8] [--count 64] [--T 20] [--rounds 5]``.
+Run ``python -m benchmarks.ensemble_simd [--n 4 8] [--count 64] [--T 20] [--rounds 5]``, or
+``--widths 4 6 8 10`` for ``free_motions``' CPU time against the batch size (1 lane, and 1, 2 and 4 times
+the SIMD width; compact mode, and unrolled code where that is the default, n <= 5).
 
 For each ``n``: ``--count`` unit-speed starts of the chain ``L = n - 1.4`` over ``T``, hinge
 method, float64, default tolerance and compile options, no dense output.  Rows:
@@ -37,6 +39,7 @@ checked against the ``free_motion`` loop.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import threading
 import time
@@ -155,13 +158,41 @@ def measure(n: int, count: int, T: float, rounds: int) -> dict[str, float]:
     return best
 
 
+def widths(n: int, count: int, T: float, rounds: int, compact: bool) -> dict[int, float]:
+    """CPU time of ``free_motions`` (one chunk) with 1 lane and 1, 2 and 4 times the SIMD width, compact or unrolled."""
+    chain = Chain(n, n - 1.4)
+    H, V = starts(chain, count)
+    width = hy.recommended_simd_size()
+    runs = {b: functools.partial(free_motions, chain, H, V, T, compact_mode=compact, batch_size=b, chunk_size=count)
+            for b in (1, width, 2 * width, 4 * width)}
+    for run in runs.values():
+        run()  # compiles
+    best = dict.fromkeys(runs, np.inf)
+    for _ in range(rounds):
+        for b, run in runs.items():
+            t0 = time.process_time()
+            run()
+            best[b] = min(best[b], time.process_time() - t0)
+    print(f"n = {n}, compact mode {compact}: " + ", ".join(
+        f"{b} lanes {1e3 * t:.1f} ms ({t / best[width]:.2f}x the width's)" for b, t in best.items()))
+    return best
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, nargs="+", default=[4, 8])
     ap.add_argument("--count", type=int, default=64)
     ap.add_argument("--T", type=float, default=20.0)
     ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--widths", type=int, nargs="*", default=None, metavar="N",
+                    help="instead: free_motions' CPU time against the batch size, for these n (compact mode; "
+                         "unrolled too where n <= 5)")
     args = ap.parse_args(argv)
+    if args.widths is not None:
+        for n in args.widths:
+            for compact in ((True, False) if n <= 5 else (True,)):
+                widths(n, args.count, args.T, args.rounds, compact)
+        return
     print(f"heyoka {hy.__version__}, {hy.recommended_simd_size()} SIMD lanes; CPU time per process, interleaved, "
           f"min of {args.rounds} rounds")
     for n in args.n:
