@@ -13,8 +13,21 @@ Run ``python -m benchmarks.energy_growth [--quick] [--long]``.  Prints:
    solver's own record and of the hinge velocities (chart-free: ``1/2 v^T K v``
    in float64) at 1 %, 10 % and 100 % of T, the median over starts, and the
    log-log slope per decade (Brouwer's law, rounding as a random walk: 0.5;
-   a systematic error: 1).  ``--long`` runs T = 1.2e5 (the issue's run; about
-   ten minutes per chart-method start), otherwise T = 1.2e4.
+   a systematic error: 1).  ``--long`` runs T = 1.2e5 (about ten minutes per
+   chart-method start), otherwise T = 1.2e4 (``--T`` sets it).  Each method
+   also prints the signed energy errors of the hinge velocities at T, their
+   mean and its standard error over the starts: a drift of one sign in every
+   start (a systematic error, growing like t) shows as a mean many standard
+   errors from 0, a random walk as a mean within a few.  ``--tols`` runs the
+   methods at each of these tolerances (``none``: each method's default).
+3. **Where the chart path's energy changes** (n = 4, L = 2.5, ``--T3``, default
+   3000, three starts, dense output): the chart energy at the start and the end
+   of every segment, split into the changes inside segments (integration), the
+   jumps across chart switches (the transfer to the new chart) and across wraps
+   of the periodic parameter (``t -> t -+ 2 pi`` in float64).  For each kind:
+   the sum over the run, and the square root of the count times the spread of
+   one change, the size a sum of independent changes would have.  A sum many
+   times that size is a systematic error.
 """
 
 from __future__ import annotations
@@ -63,29 +76,61 @@ def unequal_masses(ns: list[int], count: int, T: float = 20.0) -> None:
                       + f"   ({wall:.2f} s)")
 
 
-def long_runs(T: float, count: int, methods: tuple[str, ...] = ("charts", "hinges")) -> None:
+def long_runs(T: float, count: int, methods: tuple[str, ...] = ("charts", "hinges"),
+              tols: tuple[float | None, ...] = (None,)) -> None:
     """Section 2."""
+    for tol in tols:
+        for method in methods:
+            _long_run(T, count, method, tol)
+
+
+def _long_run(T: float, count: int, method: str, tol: float | None) -> None:
     chain = Chain(4, 2.5)
     fractions = np.array([0.01, 0.1, 1.0])
-    print(f"2. long runs, n = 4, L = 2.5, T = {T:g}, {count} starts: energy error at 1 %, 10 % and 100 % of T")
-    for method in methods:
-        record, ambient = [], []
-        for k, (h0, v0) in enumerate(_starts(chain, count)):
-            t0 = time.perf_counter()
-            m = free_motion(chain, h0, v0, T, method=method, save=SaveAt(dense=False, t_eval=T * fractions))
-            E0 = float(chain.kinetic_energy(v0))
-            times = np.array([float(t) for t in m.solution.energy_times])
-            E = np.array([float(e) for e in m.solution.energies])
-            dev = np.maximum.accumulate(np.abs(E - E[0]) / E[0])  # running maximum of the solver's own record
-            record.append([dev[np.searchsorted(times, f * T, side="right") - 1] for f in fractions])
-            ambient.append(np.abs(m.energies - E0) / E0)
-            print(f"  {method}, start {k}: record {'  '.join(f'{x:.1e}' for x in record[-1])};  hinge velocities "
-                  f"{'  '.join(f'{x:.1e}' for x in ambient[-1])}  ({m.n_steps} steps, {m.n_switches} switches, "
-                  f"{time.perf_counter() - t0:.0f} s)")
-        for name, data in (("record", record), ("hinge velocities", ambient)):
-            med = np.median(np.array(data), axis=0)
-            slope = np.polyfit(np.log10(fractions), np.log10(np.maximum(med, EPS / 4)), 1)[0]
-            print(f"  {method}: median of the {name}: {'  '.join(f'{x:.1e}' for x in med)};  slope {slope:.2f} per decade")
+    print(f"2. long runs, n = 4, L = 2.5, T = {T:g}, {count} starts, {method}, tol {tol or 'default'}: energy error "
+          "at 1 %, 10 % and 100 % of T")
+    record, ambient, signed = [], [], []
+    for k, (h0, v0) in enumerate(_starts(chain, count)):
+        t0 = time.perf_counter()
+        m = free_motion(chain, h0, v0, T, method=method, save=SaveAt(dense=False, t_eval=T * fractions),
+                        precision=Precision(tol=tol))
+        E0 = float(chain.kinetic_energy(v0))
+        times = np.array([float(t) for t in m.solution.energy_times])
+        E = np.array([float(e) for e in m.solution.energies])
+        dev = np.maximum.accumulate(np.abs(E - E[0]) / E[0])  # running maximum of the solver's own record
+        record.append([dev[np.searchsorted(times, f * T, side="right") - 1] for f in fractions])
+        ambient.append(np.abs(m.energies - E0) / E0)
+        signed.append(float((m.energies[-1] - E0) / E0))
+        print(f"  {method}, start {k}: record {'  '.join(f'{x:.1e}' for x in record[-1])};  hinge velocities "
+              f"{'  '.join(f'{x:.1e}' for x in ambient[-1])}  ({m.n_steps} steps, {m.n_switches} switches, "
+              f"{time.perf_counter() - t0:.0f} s)")
+    for name, data in (("record", record), ("hinge velocities", ambient)):
+        med = np.median(np.array(data), axis=0)
+        slope = np.polyfit(np.log10(fractions), np.log10(np.maximum(med, EPS / 4)), 1)[0]
+        print(f"  {method}: median of the {name}: {'  '.join(f'{x:.1e}' for x in med)};  slope {slope:.2f} per decade")
+    mean, se = np.mean(signed), np.std(signed, ddof=1) / np.sqrt(len(signed)) if len(signed) > 1 else np.nan
+    print(f"  {method}: signed (E - E0) / E0 of the hinge velocities at T: {'  '.join(f'{x:+.1e}' for x in signed)};"
+          f"  mean {mean:+.1e}, standard error {se:.1e} ({abs(mean) / se:.1f} of them)")
+
+
+def energy_budget(T: float, count: int) -> None:
+    """Section 3."""
+    chain = Chain(4, 2.5)
+    print(f"3. where the chart path's energy changes, n = 4, L = 2.5, T = {T:g}, {count} starts: sum of the changes "
+          "(relative to E0) and sqrt(count) * spread, for each kind")
+    for k, (h0, v0) in enumerate(_starts(chain, count)):
+        sol = free_motion(chain, h0, v0, T, method="charts", save=SaveAt(dense=True)).solution
+        num, dim = sol.chart_numerics, chain.atlas().dim
+        ends = []
+        for seg in sol.segments:
+            y = seg.dense(np.array([seg.t_start, seg.t_end]))
+            ends.append([float(e) for e in num[seg.chart].point_velocity_energy(y[:, :dim].T, y[:, dim:2 * dim].T)[2]])
+        E = np.array(ends) / float(sol.energies[0])
+        inside, jumps = E[:, 1] - E[:, 0], E[1:, 0] - E[:-1, 1]
+        at_switch = np.isin([float(seg.t_start) for seg in sol.segments[1:]], [s.time for s in sol.switches])
+        kinds = (("inside segments", inside), ("at switches", jumps[at_switch]), ("at wraps", jumps[~at_switch]))
+        print(f"  start {k} ({sol.n_steps} steps, E(T)/E0 - 1 = {E[-1, 1] - 1:+.1e}): " + ";  ".join(
+            f"{name} ({len(x)}): {x.sum():+.1e} against {np.sqrt(len(x)) * x.std():.1e}" for name, x in kinds))
 
 
 def main() -> None:
@@ -93,7 +138,11 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="n = 4 only, two starts, T = 1.2e3")
     ap.add_argument("--long", action="store_true", help="T = 1.2e5 for the long runs (the issue's run)")
     ap.add_argument("--starts", type=int, default=None, help="starts of the long runs (default 6, with --long 3)")
-    ap.add_argument("--sections", default="12", help="which sections to run, e.g. 2")
+    ap.add_argument("--sections", default="123", help="which sections to run, e.g. 2")
+    ap.add_argument("--T", type=float, default=None, help="T of the long runs (default 1.2e4, with --long 1.2e5)")
+    ap.add_argument("--tols", default="none", help="tolerances of the long runs, comma-separated (none: the default)")
+    ap.add_argument("--methods", default="charts,hinges", help="methods of the long runs, comma-separated")
+    ap.add_argument("--T3", type=float, default=3000.0, help="T of section 3")
     args = ap.parse_args()
     if args.quick:
         unequal_masses([4], 2)
@@ -102,7 +151,11 @@ def main() -> None:
     if "1" in args.sections:
         unequal_masses([4, 6], 4)
     if "2" in args.sections:
-        long_runs(1.2e5 if args.long else 1.2e4, args.starts or (3 if args.long else 6))
+        tols = tuple(None if t == "none" else float(t) for t in args.tols.split(","))
+        long_runs(args.T or (1.2e5 if args.long else 1.2e4), args.starts or (3 if args.long else 6),
+                  tuple(args.methods.split(",")), tols)
+    if "3" in args.sections:
+        energy_budget(args.T3, 3)
 
 
 if __name__ == "__main__":
