@@ -19,7 +19,11 @@ Run ``python -m benchmarks.energy_growth [--quick] [--long]``.  Prints:
    mean and its standard error over the starts: a drift of one sign in every
    start (a systematic error, growing like t) shows as a mean many standard
    errors from 0, a random walk as a mean within a few.  ``--tols`` runs the
-   methods at each of these tolerances (``none``: each method's default).
+   methods at each of these tolerances (``none``: each method's default);
+   ``--methods`` takes ``hinges``, ``charts`` (the default chart path: Sundman's
+   time, the state ``(a, V)``, its drift damped) and the chart path with one
+   part switched off: ``charts:t`` (in ``t``), ``charts:ac`` (the state
+   ``(a, c)``), ``charts:undamped`` (damping rate 0).
 3. **Where the chart path's energy changes** (n = 4, L = 2.5, ``--T3``, default
    3000, three starts, dense output): the chart energy at the start and the end
    of every segment, split into the changes inside segments (integration), the
@@ -39,7 +43,12 @@ import time
 import numpy as np
 
 from linkage import Chain
+from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
+from linkage.time_factor import ChainTimeFactor
+from manifold.ambient_velocity import ConstrainedVelocity
+from manifold.steppers import TaylorStepper
+from manifold.sundman import SundmanStepper
 
 from .starts import chart_start
 
@@ -76,6 +85,17 @@ def unequal_masses(ns: list[int], count: int, T: float = 20.0) -> None:
                       + f"   ({wall:.2f} s)")
 
 
+def _options(chain: Chain, method: str, tol: float | None) -> dict:
+    """``free_motion`` options of a ``--methods`` entry."""
+    if method in ("hinges", "charts"):
+        return {"method": method, "precision": Precision(tol=tol)}
+    velocity = None if method == "charts:ac" else ConstrainedVelocity(
+        ChainSystem(chain), **({"rate": 0.0} if method == "charts:undamped" else {}))
+    stepper = (TaylorStepper(tol=tol, velocity=velocity) if method == "charts:t"
+               else SundmanStepper(ChainTimeFactor(chain), tol=tol, velocity=velocity))
+    return {"method": "charts", "stepper": stepper}
+
+
 def long_runs(T: float, count: int, methods: tuple[str, ...] = ("charts", "hinges"),
               tols: tuple[float | None, ...] = (None,)) -> None:
     """Section 2."""
@@ -92,8 +112,7 @@ def _long_run(T: float, count: int, method: str, tol: float | None) -> None:
     record, ambient, signed = [], [], []
     for k, (h0, v0) in enumerate(_starts(chain, count)):
         t0 = time.perf_counter()
-        m = free_motion(chain, h0, v0, T, method=method, save=SaveAt(dense=False, t_eval=T * fractions),
-                        precision=Precision(tol=tol))
+        m = free_motion(chain, h0, v0, T, save=SaveAt(dense=False, t_eval=T * fractions), **_options(chain, method, tol))
         E0 = float(chain.kinetic_energy(v0))
         times = np.array([float(t) for t in m.solution.energy_times])
         E = np.array([float(e) for e in m.solution.energies])
