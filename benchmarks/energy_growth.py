@@ -23,7 +23,9 @@ Run ``python -m benchmarks.energy_growth [--quick] [--long]``.  Prints:
    ``--methods`` takes ``hinges``, ``charts`` (the default chart path: Sundman's
    time, the state ``(a, V)``, its drift damped) and the chart path with one
    part switched off: ``charts:t`` (in ``t``), ``charts:ac`` (the state
-   ``(a, c)``), ``charts:undamped`` (damping rate 0).
+   ``(a, c)``), ``charts:undamped`` (damping rate 0); and ``charts:longdouble``
+   (the default chart path in long double: at the same tolerance the same
+   truncation, 2^-11 of the rounding).
 3. **Where the chart path's energy changes** (n = 4, L = 2.5, ``--T3``, default
    3000, three starts, dense output): the chart energy at the start and the end
    of every segment, split into the changes inside segments (integration), the
@@ -89,6 +91,8 @@ def _options(chain: Chain, method: str, tol: float | None) -> dict:
     """``free_motion`` options of a ``--methods`` entry."""
     if method in ("hinges", "charts"):
         return {"method": method, "precision": Precision(tol=tol)}
+    if method == "charts:longdouble":
+        return {"method": "charts", "precision": Precision(np.longdouble, tol)}
     velocity = None if method == "charts:ac" else ConstrainedVelocity(
         ChainSystem(chain), **({"rate": 0.0} if method == "charts:undamped" else {}))
     stepper = (TaylorStepper(tol=tol, velocity=velocity) if method == "charts:t"
