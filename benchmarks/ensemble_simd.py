@@ -17,7 +17,7 @@ method, float64, default tolerance and compile options, no dense output.  Rows:
   energy and constraint checks, per-lane status), one thread.
 * ``bare scalar loop``: heyoka's scalar integrator of the same equations, one start after the other
   (``propagate_until``), the serial loop a user of heyoka would write.
-* ``free_motion loop``: a Python loop of ``free_motion(..., dense=False)`` calls.
+* ``free_motion loop``: a Python loop of ``free_motion(..., save=SaveAt(dense=False))`` calls.
 * ``free_motions threads``: as ``serial`` on the threads backend (wall time: the CPU time of
   threads adds up over cores).
 
@@ -51,6 +51,7 @@ import numpy as np
 from linkage import Chain
 from linkage.constraints import ChainSystem, start_states
 from linkage.motion import free_motion, free_motions
+from manifold import SaveAt
 from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
 from manifold.constrained_batch import DEFAULT_WIDTHS
 
@@ -128,7 +129,7 @@ def measure(n: int, count: int, T: float, rounds: int) -> dict[str, float]:
         **({"bare batch, width": (bare(chain, H, V, T, width), False)} if lanes != width else {}),
         "free_motions serial": (lambda: free_motions(chain, H, V, T).solution.end_points, False),
         "bare scalar loop": (bare(chain, H, V, T, 1), False),
-        "free_motion loop": (lambda: np.array([free_motion(chain, h, v, T, method="hinges", dense=False)
+        "free_motion loop": (lambda: np.array([free_motion(chain, h, v, T, method="hinges", save=SaveAt(dense=False))
                                                .solution.end_state()[0].astype(float) for h, v in zip(H, V)]), False),
         "free_motions threads": (lambda: free_motions(chain, H, V, T, backend="threads").solution.end_points, True),
     }
