@@ -39,7 +39,7 @@ from linkage.spatial.examples import (
     spherical_four_bar,
 )
 
-from .test_spatial_traps import _shared_axis_chain
+from .test_spatial_traps import shared_axis_chain
 
 R = sympy.Rational
 INF = complex("inf")
@@ -99,7 +99,7 @@ def test_the_degenerate_bonds_at_infinity_sit_on_joints_at_rest():
     """Axes 1 and 3 on one line, joints 2 and 4 at the identity: the bonds at infinity are on
     joints of length 0, as the fibre count demands."""
     t = sympy.Symbol("t")
-    chain = _shared_axis_chain(ConfigurationCurve([t, 1, t, 1], [0, 0, 0, 0], [1, 0, 1, 0]))
+    chain = shared_axis_chain(ConfigurationCurve([t, 1, t, 1], [0, 0, 0, 0], [1, 0, 1, 0]))
     b = joint_lengths(chain)
     for bond in chain.bonds():
         resting = [k for k, z in enumerate(bond.joints) if np.isinf(abs(z))]

@@ -127,7 +127,7 @@ def test_zero_threshold_is_documented_and_used():
     assert series.Series.exact([series.ZERO_THRESHOLD * 10, 0, 1]).order() == 0
 
 
-def _shared_axis_chain(curve):
+def shared_axis_chain(curve):
     """Axes 1 and 3 on one line (``h3 = -h1``): with joints 2 and 4 at the identity the chain
     still moves, ``(t - h1)(t - h3) = t^2 + 1`` is real.  On that component the bonds have
     joint coordinates ``inf`` (Remark 13)."""
@@ -149,7 +149,7 @@ def test_bonds_with_joint_coordinates_at_infinity_exact_and_series():
     tau = sympy.Symbol("t")  # the same curve on the conic w^2 = t^2 + 1, joint 1 = t + w
     conic = ConfigurationCurve([tau, 1, tau, 1], [1, 0, 1, 0], [1, 0, 1, 0], g=tau**2 + 1)
     for curve, numeric in ((rational, False), (rational, True), (conic, False), (conic, True)):
-        bonds = _shared_axis_chain(curve).bonds(numeric=numeric)
+        bonds = shared_axis_chain(curve).bonds(numeric=numeric)
         method = "mpmath-50" if numeric else "exact"
         assert_same_bond_set([b.joints for b in bonds], [(I, inf, I, inf), (-I, inf, -I, inf)])
         for b in bonds:
