@@ -33,6 +33,7 @@ from linkage.constraints import ChainSystem, start_state
 from manifold.constrained import ConstrainedLayout, ConstrainedPieces
 from manifold.events import heyoka_events
 from manifold.geodesic_system import Layout, SymbolicPieces
+from manifold.options import DEFAULT_START
 from manifold.precision import as_fp
 
 from .study.experiments import generic_start
@@ -47,7 +48,7 @@ def _in_tau(equations: list, factor: hy.expression) -> tuple[list, hy.expression
 def _hinge_integrators(n: int, T: float, fp_type) -> tuple:
     """Plain and Sundman integrators of the hinge equations from the study's generic start, pars set."""
     chain, p0, v0 = generic_start(n)
-    _, x0, w0, _ = start_state(chain, chain.from_point(p0), chain.from_point(v0), T, 1e-9, False)
+    _, x0, w0, _ = start_state(chain, chain.from_point(p0), chain.from_point(v0), T, DEFAULT_START)
     system = ChainSystem(chain)
     layout = ConstrainedLayout.of(system)
     pieces = ConstrainedPieces(system, layout, fp_type)

@@ -42,6 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
 from manifold import CallableDense, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
+from manifold.options import DEFAULT_START, StartCheck, takes_option_groups
 from manifold.validation import check_bool, check_real
 
 from .chain import Chain
@@ -67,6 +68,7 @@ def _segment_bounds(t_final: float, interval: float | None) -> NDArray:
     return b if t_final > 0 else 0.0 - b  # 0.0 - b: no -0.0 at the start
 
 
+@takes_option_groups
 def integrate_ambient(
     chain: Chain,
     hinges0: ArrayLike,
@@ -79,8 +81,7 @@ def integrate_ambient(
     atol: float = 1e-12,
     project: bool = False,
     projection_interval: float = 0.1,
-    tangent_tol: float = 1e-9,
-    project_velocity: bool = False,
+    start: StartCheck = DEFAULT_START,
     throw: bool = True,
 ) -> ChainMotion:
     """Integrate the free motion of ``chain`` in hinge space with rod constraints.
@@ -105,8 +106,8 @@ def integrate_ambient(
         (:meth:`Chain.check_configuration`, raises ``ConfigurationError``).
     velocity0
         Complex initial hinge velocities, finite and tangent:
-        ``max_k l_k |(G v)_k| <= tangent_tol * max(1, |v|)`` (``|v|`` Euclidean),
-        else ``ValueError`` -- unless ``project_velocity``.
+        ``max_k l_k |(G v)_k| <= start.tangent_tol * max(1, |v|)`` (``|v|`` Euclidean),
+        else ``ValueError`` -- unless ``start.project_velocity``.
     t_final
         Finite, nonzero end time; negative integrates backward from ``t = 0``.
     t_eval
@@ -124,11 +125,10 @@ def integrate_ambient(
         is piecewise, each piece starting from a projected state.
     projection_interval
         Segment length for ``project``, finite and ``> 0``.
-    tangent_tol
-        Relative tolerance of the tangency check of ``velocity0``.
-    project_velocity
-        If true, project ``velocity0`` K-orthogonally onto the tangent space
-        instead of refusing a non-tangent one.
+    start
+        :class:`manifold.StartCheck` ``(tangent_tol, project_velocity)``: the relative tolerance of the
+        tangency check of ``velocity0``, and whether a non-tangent one is projected K-orthogonally onto the
+        tangent space instead of refused.
     throw
         If true (default), a run that fails before ``t_final`` raises
         :class:`~manifold.GeodesicIntegrationError` with the partial solution;
@@ -141,7 +141,7 @@ def integrate_ambient(
         segments are in hinge coordinates (``chart=None``): chart parameters
         come on demand from the best chart of the atlas, where the chain has one.
     """
-    system, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
+    system, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
     interval = check_real("projection_interval", projection_interval, positive=True) if project else None
     rtol, atol = check_real("rtol", rtol, positive=True), check_real("atol", atol, positive=True)
     project, throw = check_bool("project", project), check_bool("throw", throw)

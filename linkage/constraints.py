@@ -48,15 +48,13 @@ import heyoka as hy
 from charts.chain_geometry import to_real
 from manifold.backends import Cx
 from manifold.constrained import ConstrainedSystem
-from manifold.validation import check_bool, check_real
+from manifold.options import StartCheck, check_group
+from manifold.validation import check_real
 
 from . import rods
 from .chain import Chain
 
-__all__ = ["TANGENT_TOL", "ChainSystem", "HingeConstraints", "HingeStart", "start_state", "start_states"]
-
-#: The default relative tolerance of every tangency check in ``linkage`` (:meth:`HingeConstraints.tangency_allowance`).
-TANGENT_TOL = 1e-9
+__all__ = ["ChainSystem", "HingeConstraints", "HingeStart", "start_state", "start_states"]
 
 #: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
 _PROJECTION_STEPS = 8
@@ -329,9 +327,7 @@ class HingeStart(NamedTuple):
     t_final: float
 
 
-def start_state(
-    chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, tangent_tol: float, project_velocity: bool
-) -> HingeStart:
+def start_state(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, check: StartCheck) -> HingeStart:
     """Validate the start of a hinge-space integration (shared by every hinge-space method), once per solve.
 
     Parameters
@@ -344,16 +340,15 @@ def start_state(
         (:meth:`Chain.check_configuration`, else ``ConfigurationError``).
     velocity0
         Complex initial hinge velocities, ``n - 1`` finite entries, tangent:
-        ``max_k l_k |(G v)_k| <= tangent_tol * max(1, |v|)`` (``l_k |(G v)_k|`` is
+        ``max_k l_k |(G v)_k| <= check.tangent_tol * max(1, |v|)`` (``l_k |(G v)_k|`` is
         twice the rate of change of rod length ``k``; else ``ValueError``) unless
-        ``project_velocity``.
+        ``check.project_velocity``.
     t_final
         End time, finite and nonzero (:func:`manifold.validation.check_real`).
-    tangent_tol
-        Relative tolerance of the tangency check, ``> 0``.
-    project_velocity
-        Replace a non-tangent ``velocity0`` by its K-orthogonal projection
-        :meth:`HingeConstraints.project_velocity` instead of refusing it.
+    check
+        The :class:`manifold.StartCheck` ``(tangent_tol, project_velocity)``: the relative tolerance of the
+        tangency check, and whether a non-tangent ``velocity0`` is replaced by its K-orthogonal projection
+        (:meth:`HingeConstraints.project_velocity`) instead of refused.
 
     Returns
     -------
@@ -361,14 +356,13 @@ def start_state(
         ``(constraints, x0, v0, t_final)``: the chain's :class:`HingeConstraints`,
         the real interleaved start position and velocity, and ``t_final`` as a float.
     """
-    project_velocity = check_bool("project_velocity", project_velocity)
+    check = check_group("start", check, StartCheck)
     chain.check_generic()
     h0 = chain.check_one_configuration(hinges0, "hinges0", " (for many starts at once: free_motions)")
     v0 = chain.as_hinges(velocity0, "velocity0")
     if v0.shape != (chain.n - 1,):
         raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
     t_final = check_real("t_final", t_final, nonzero=True)
-    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
     system = HingeConstraints(chain)
     x0, v0 = h0.view(float), v0.view(float)  # interleaved (x_1, y_1, ...): to_real of fresh complex128 vectors, no copy
     with np.errstate(over="ignore", invalid="ignore"):
@@ -376,21 +370,20 @@ def start_state(
     if not np.isfinite(energy):
         raise ValueError(f"velocity0 gives a non-finite kinetic energy (max |velocity0| = {np.max(np.abs(v0)):.3g})")
     residual = float(system.tangency_residual(x0, v0))
-    allowed = float(system.tangency_allowance(v0, tangent_tol))
+    allowed = float(system.tangency_allowance(v0, check.tangent_tol))
     if residual > allowed:
-        if not project_velocity:
+        if not check.project_velocity:
             raise ValueError(
                 f"velocity0 is not tangent to the configuration space: max_k l_k |(G v)_k| = {residual:.3g} "
                 f"exceeds tangent_tol * max(1, |v|) = {allowed:.3g} "
-                "(pass project_velocity=True to project it)"
+                "(pass start=StartCheck(project_velocity=True) to project it)"
             )
         v0 = system.project_velocity(x0, v0)
     return HingeStart(system, x0, v0, t_final)
 
 
 def start_states(
-    chain: Chain, hinges0: ArrayLike, velocities0: ArrayLike, t_final: float, tangent_tol: float,
-    project_velocity: bool
+    chain: Chain, hinges0: ArrayLike, velocities0: ArrayLike, t_final: float, check: StartCheck
 ) -> tuple[HingeConstraints, NDArray, NDArray, float]:
     """:func:`start_state` for many starts at once: rows of ``hinges0`` and ``velocities0``, shape ``(N, n-1)``.
 
@@ -404,14 +397,13 @@ def start_states(
     tuple
         ``(constraints, X0, V0, t_final)`` with real interleaved ``X0``, ``V0`` of shape ``(N, 2(n-1))``.
     """
-    project_velocity = check_bool("project_velocity", project_velocity)
+    check = check_group("start", check, StartCheck)
     H = chain.as_hinges(hinges0, "configuration")
     W = chain.as_hinges(velocities0, "velocity")
     if H.ndim != 2 or W.shape != H.shape or H.shape[0] == 0:
         raise ValueError(f"hinges0 and velocities0 must both have shape (N, n - 1) = (N, {chain.n - 1}) with N >= 1, "
                          f"got {H.shape} and {W.shape}")
     t_final = check_real("t_final", t_final, nonzero=True)
-    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
     system = HingeConstraints(chain)
     X0, V0 = to_real(H).astype(float), to_real(W).astype(float)
     with np.errstate(over="ignore", invalid="ignore"):
@@ -419,10 +411,10 @@ def start_states(
     chain.check_generic()
     residual = system.tangency_residual(X0, V0)
     ok = (chain.closure_residual(H) <= 1e-9) & np.isfinite(energy)
-    ok &= residual <= system.tangency_allowance(V0, tangent_tol)
+    ok &= residual <= system.tangency_allowance(V0, check.tangent_tol)
     for k in np.nonzero(~ok)[0]:
         try:
-            _, X0[k], V0[k], _ = start_state(chain, H[k], W[k], t_final, tangent_tol, project_velocity)
+            _, X0[k], V0[k], _ = start_state(chain, H[k], W[k], t_final, check)
         except ValueError as e:
             raise type(e)(f"start {k} (hinges0[{k}], velocities0[{k}]): {e}") from None
     return system, X0, V0, t_final

@@ -19,7 +19,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold.constrained_batch import solve_constrained_ensemble
 from manifold.ensemble import EnsembleSolution, chunk_bounds, default_chunk_size, run_chunks
-from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, refuse_moved_options
+from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, Precision, SaveAt, StartCheck,
+                              check_group, refuse_moved_options)
 from manifold.progress import ProgressArgument
 from manifold.solution import SolveStatus
 from manifold.validation import check_positive_int
@@ -135,8 +136,7 @@ def free_motions(
     progress: ProgressArgument = False,
     batch_size: int | None = None,
     chunk_size: int | None = None,
-    tangent_tol: float = 1e-9,
-    project_velocity: bool = False,
+    start: StartCheck = DEFAULT_START,
     **kwargs: Any,
 ) -> EnsembleMotion:
     """Integrate the chain's free motion from many starts: ``hinges0[k]`` with velocity ``velocities0[k]``.
@@ -183,8 +183,9 @@ def free_motions(
         (:data:`manifold.constrained_batch.DEFAULT_WIDTHS`); 1: scalar steps.
     chunk_size
         Trajectories per chunk of work; ``None``: four chunks per thread, one per Dask worker thread.
-    tangent_tol, project_velocity
-        The start checks of :func:`~linkage.motion.free_motion`.
+    start
+        :class:`manifold.StartCheck` ``(tangent_tol, project_velocity)``: the start check of
+        :func:`~linkage.motion.free_motion`, applied to every row.
     **kwargs
         Options of the method (``rate``, ``compact_mode``, ``stabilisation``, ``q_out``, ...), as for
         :func:`~linkage.motion.free_motion`; ``throw`` is not accepted (an ensemble reports failures per
@@ -205,7 +206,7 @@ def free_motions(
     save, precision = check_group("save", save, SaveAt), check_group("precision", precision, Precision)
     if save.keeps_dense(False):
         raise TypeError("free_motions keeps no dense output: ask for states with save=SaveAt(t_eval=...)")
-    _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, tangent_tol, project_velocity)
+    _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, start)
     grid = save.grid(t_final)
     batchable = (method == "hinges" and set(kwargs) <= BATCH_OPTIONS and precision.fp_type is float
                  and kwargs.get("stabilisation", "baumgarte") == "baumgarte")

@@ -32,7 +32,8 @@ from manifold.carried import CarriedSolution, CarriedTerm, solve_carried
 from manifold.constrained import ConstrainedGeometry, solve_constrained
 from manifold.geodesic_solver import at_rest
 from manifold.jacobi import JacobiField
-from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
+from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, PROJECTED_START, Precision, SaveAt,
+                              StartCheck, check_group, takes_option_groups)
 from manifold.precision import is_double
 from manifold.sundman import SundmanStepper
 from manifold.transport import ParallelTransport
@@ -40,7 +41,7 @@ from manifold.validation import check_positive_int, check_real
 
 from .chain import Chain
 from .diagonal_path import DiagonalPath
-from .constraints import TANGENT_TOL, ChainSystem, HingeConstraints, HingeStart, start_state
+from .constraints import ChainSystem, HingeConstraints, HingeStart, start_state
 from .time_factor import ChainTimeFactor
 
 #: Where a geodesic with quantities carried along it is integrated: in hinge coordinates (any generic lengths) or
@@ -112,15 +113,16 @@ class JacobiFieldMotion(CarriedMotion):
 
 
 def _tangent_vectors(constraints: HingeConstraints, x0: NDArray, values: ArrayLike, name: str,
-                     tangent_tol: float) -> tuple[NDArray, bool]:
-    """Complex tangent vectors at ``x0`` (shape ``(n-1,)`` or ``(k, n-1)``) as real rows ``(k, N)``, checked."""
+                     start: StartCheck) -> tuple[NDArray, bool]:
+    """Complex tangent vectors at ``x0`` (shape ``(n-1,)`` or ``(k, n-1)``) as real rows ``(k, N)``, checked to
+    ``start.tangent_tol`` (never projected: ``start.project_velocity`` is for the start velocity alone)."""
     chain = constraints.chain
     w = chain.as_hinges(values, name)
     if w.ndim not in (1, 2) or w.shape[-1] != chain.n - 1 or w.size == 0:
         raise ValueError(f"{name} must have shape (n - 1,) = ({chain.n - 1},) or (k, {chain.n - 1}), got {w.shape}")
     rows = np.atleast_2d(chain.to_point(w)).astype(float)
     residual = constraints.tangency_residual(np.broadcast_to(x0, rows.shape), rows)
-    allowed = constraints.tangency_allowance(rows, tangent_tol)
+    allowed = constraints.tangency_allowance(rows, start.tangent_tol)
     bad = ~(residual <= allowed)
     if np.any(bad):
         k = int(np.argmax(bad))
@@ -137,7 +139,7 @@ def _times(grid: NDArray | None, carried: CarriedSolution) -> NDArray:
 
 
 def checked_start(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, save: SaveAt,
-                  tangent_tol: float, method: str) -> tuple[HingeStart, NDArray | None]:
+                  start: StartCheck, method: str) -> tuple[HingeStart, NDArray | None]:
     """The start of a solve with terms carried by ``method``, checked once (:func:`linkage.constraints.start_state`,
     the time named ``T``), and the grid of ``save`` (or ``None``: every step)."""
     if method not in METHODS:
@@ -145,8 +147,8 @@ def checked_start(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: flo
     save = check_group("save", save, SaveAt)
     if not save.keeps_dense(True):
         raise TypeError("the carried values are read from dense output: save=SaveAt(dense=False) is not taken")
-    start = start_state(chain, hinges0, velocity0, check_real("T", T, nonzero=True), tangent_tol, False)
-    return start, save.grid(start.t_final)
+    checked = start_state(chain, hinges0, velocity0, check_real("T", T, nonzero=True), start)
+    return checked, save.grid(checked.t_final)
 
 
 def _solve(start: HingeStart, term: CarriedTerm, grid: NDArray | None, precision: Precision, method: str,
@@ -177,7 +179,7 @@ def _solve_in_charts(chain: Chain, x0: NDArray, v0: NDArray, T: float, term: Car
     velocity = ConstrainedVelocity(system)
     stepper = SundmanStepper(ChainTimeFactor(chain), tol=precision.tol, velocity=velocity,
                              terms=(ChartCarried(term, velocity),))
-    solution = solve_chart_exp_ode(chain.metric(), x0, v0, T, stepper=stepper, project_velocity=True,
+    solution = solve_chart_exp_ode(chain.metric(), x0, v0, T, stepper=stepper, start=PROJECTED_START,
                                    precision=dataclasses.replace(precision, tol=None), **options)
     carried = CarriedSolution(solution, (term,), ConstrainedGeometry(system, solution.fp_type))
     violation = carried.violation(stepper.relative_tolerance(solution.fp_type))
@@ -190,7 +192,7 @@ def _solve_in_charts(chain: Chain, x0: NDArray, v0: NDArray, T: float, term: Car
 
 @takes_option_groups
 def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, *,
-        precision: Precision = DEFAULT_PRECISION, tangent_tol: float = TANGENT_TOL, **options: Any) -> NDArray:
+        precision: Precision = DEFAULT_PRECISION, start: StartCheck = DEFAULT_START, **options: Any) -> NDArray:
     """The exponential map: the hinges at time ``t`` of the geodesic from ``hinges0`` with velocity ``velocity0``.
 
     Parameters
@@ -203,8 +205,9 @@ def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, 
         The time (nonzero; negative runs backward).  ``exp(chain, h, v, t) = exp(chain, h, t v, 1)``.
     precision
         :class:`manifold.Precision` ``(fp_type, tol)``: the working precision and heyoka's tolerance.
-    tangent_tol
-        The tangency tolerance of ``velocity0`` (:func:`linkage.constraints.start_state`).
+    start
+        :class:`manifold.StartCheck` ``(tangent_tol, project_velocity)``: the tangency check of ``velocity0``
+        (:func:`linkage.constraints.start_state`), and whether a non-tangent one is projected instead of refused.
     **options
         Passed to :func:`manifold.constrained.solve_constrained` (``rate``, ``throw``, ...).
 
@@ -216,7 +219,7 @@ def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, 
     for name in ("save", "carry"):
         if name in options:
             raise TypeError(f"exp does not take {name}= (it returns the end point; see parallel_transport for a path)")
-    _, x0, v0, t = start_state(chain, hinges0, velocity0, check_real("t", t, nonzero=True), tangent_tol, False)
+    _, x0, v0, t = start_state(chain, hinges0, velocity0, check_real("t", t, nonzero=True), start)
     sol = solve_constrained(ChainSystem(chain), x0, v0, t, precision=precision, save=SaveAt(dense=False), **options)
     return chain.from_point(sol.end_state()[0].astype(float))
 
@@ -224,7 +227,7 @@ def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, 
 @takes_option_groups
 def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, vectors0: ArrayLike, T: float, *,
                        save: SaveAt = DEFAULT_SAVE, precision: Precision = DEFAULT_PRECISION, method: str = "hinges",
-                       tangent_tol: float = TANGENT_TOL, **options: Any) -> TransportedVectors:
+                       start: StartCheck = DEFAULT_START, **options: Any) -> TransportedVectors:
     """Transport tangent vectors parallel along the geodesic from ``(hinges0, velocity0)`` for the time ``T``.
 
     ``W' = -K^{-1} G^T M^{-1} ((dG/dt) W)`` in hinge coordinates
@@ -240,7 +243,7 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
         As in :func:`exp`.
     vectors0
         Complex tangent vectors at ``hinges0``: shape ``(n-1,)`` or ``(k, n-1)``;
-        tangent to ``tangent_tol`` (as ``velocity0``), else ``ValueError``.
+        tangent to ``start.tangent_tol`` (as ``velocity0``), else ``ValueError`` (never projected).
     T
         The time to transport for (nonzero; negative runs backward).
     save
@@ -257,8 +260,9 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
         :class:`~manifold.ambient_velocity.ConstrainedVelocity`), through every
         chart switch unchanged (they are ambient: no chart coefficients to map), and their invariants checked
         over every step afterwards; where the chain has an atlas.
-    tangent_tol
-        The tangency tolerance of ``velocity0`` and ``vectors0``.
+    start
+        :class:`manifold.StartCheck` ``(tangent_tol, project_velocity)``: the tangency tolerance of ``velocity0``
+        and ``vectors0``, and whether a non-tangent ``velocity0`` (only it) is projected instead of refused.
     **options
         Passed to :func:`manifold.carried.solve_carried` (``rate``, ``throw``, ``progress``, ...),
         or for ``"charts"`` to :func:`manifold.solve_chart_exp_ode` (``q_out``, ``throw``, ...).
@@ -268,17 +272,16 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
     TransportedVectors
         ``times``, ``hinges``, ``velocities``, ``vectors``; callable at other times.
     """
-    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
-    start, grid = checked_start(chain, hinges0, velocity0, T, save, tangent_tol, method)
-    rows, single = _tangent_vectors(start.constraints, start.x0, vectors0, "vectors0", tangent_tol)
-    carried, times = _solve(start, ParallelTransport(rows), grid, precision, method, options)
+    checked, grid = checked_start(chain, hinges0, velocity0, T, save, start, method)
+    rows, single = _tangent_vectors(checked.constraints, checked.x0, vectors0, "vectors0", start)
+    carried, times = _solve(checked, ParallelTransport(rows), grid, precision, method, options)
     return TransportedVectors(chain, carried, times, single)
 
 
 @takes_option_groups
 def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0: ArrayLike, derivative0: ArrayLike,
                  T: float, *, save: SaveAt = DEFAULT_SAVE, precision: Precision = DEFAULT_PRECISION,
-                 method: str = "hinges", tangent_tol: float = TANGENT_TOL, checked: bool = True,
+                 method: str = "hinges", start: StartCheck = DEFAULT_START, checked: bool = True,
                  **options: Any) -> JacobiFieldMotion:
     """The Jacobi field along the geodesic from ``(hinges0, velocity0)`` with ``J(0) = field0``, ``D_t J(0) = derivative0``.
 
@@ -288,7 +291,7 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
 
     Parameters
     ----------
-    chain, hinges0, velocity0, T, save, precision, method, tangent_tol, **options
+    chain, hinges0, velocity0, T, save, precision, method, start, **options
         As in :func:`parallel_transport`.
     field0, derivative0
         Complex tangent vectors at ``hinges0``, one shape: ``(n-1,)`` or ``(k, n-1)`` for ``k`` fields at once.
@@ -301,23 +304,22 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
     JacobiFieldMotion
         ``times``, ``hinges``, ``velocities``, ``field``, ``field_derivative``; callable at other times.
     """
-    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
-    start, grid = checked_start(chain, hinges0, velocity0, T, save, tangent_tol, method)
-    return jacobi_field_from(start, field0, derivative0, grid, precision, method, tangent_tol, checked, options)
+    hinge_start, grid = checked_start(chain, hinges0, velocity0, T, save, start, method)
+    return jacobi_field_from(hinge_start, field0, derivative0, grid, precision, method, start, checked, options)
 
 
-def jacobi_field_from(start: HingeStart, field0: ArrayLike, derivative0: ArrayLike, grid: NDArray | None,
-                      precision: Precision, method: str, tangent_tol: float, checked: bool,
+def jacobi_field_from(hinge_start: HingeStart, field0: ArrayLike, derivative0: ArrayLike, grid: NDArray | None,
+                      precision: Precision, method: str, start: StartCheck, checked: bool,
                       options: dict[str, Any]) -> JacobiFieldMotion:
     """:func:`jacobi_field` from a start that :func:`checked_start` has checked (with its grid, or ``None``): the
-    fields are checked for tangency, the start is not checked again."""
-    J, single = _tangent_vectors(start.constraints, start.x0, field0, "field0", tangent_tol)
-    U, _ = _tangent_vectors(start.constraints, start.x0, derivative0, "derivative0", tangent_tol)
+    fields are checked for tangency to ``start.tangent_tol``, the start is not checked again."""
+    J, single = _tangent_vectors(hinge_start.constraints, hinge_start.x0, field0, "field0", start)
+    U, _ = _tangent_vectors(hinge_start.constraints, hinge_start.x0, derivative0, "derivative0", start)
     if J.shape != U.shape:
         raise ValueError(f"field0 and derivative0 must have one shape, got {np.shape(field0)} and "
                          f"{np.shape(derivative0)}")
-    carried, times = _solve(start, JacobiField(J, U, checked), grid, precision, method, options)
-    return JacobiFieldMotion(start.constraints.chain, carried, times, single)
+    carried, times = _solve(hinge_start, JacobiField(J, U, checked), grid, precision, method, options)
+    return JacobiFieldMotion(hinge_start.constraints.chain, carried, times, single)
 
 
 class LogResult:
@@ -406,7 +408,8 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
     hinges0, hinges1
         Complex configurations of the same connected component, shape ``(n-1,)``.
     velocity_guess
-        A first guess for Newton's method: a tangent velocity at ``hinges0``, shape ``(n-1,)``.
+        A first guess for Newton's method: a tangent velocity at ``hinges0``, shape ``(n-1,)`` (tangent to the
+        default tolerance of :class:`manifold.StartCheck`).
     rtol
         Convergence: ``|exp(v) - h1| <= rtol`` times the chain's mean rod length, ``> 0``.
     max_iterations
@@ -446,7 +449,7 @@ def log(chain: Chain, hinges0: ArrayLike, hinges1: ArrayLike, *, velocity_guess:
     K = chain.ambient_metric
     guesses = []
     if velocity_guess is not None:
-        guess, single = _tangent_vectors(constraints, x0, velocity_guess, "velocity_guess", TANGENT_TOL)
+        guess, single = _tangent_vectors(constraints, x0, velocity_guess, "velocity_guess", DEFAULT_START)
         if not single:
             raise ValueError(f"velocity_guess must have shape (n - 1,) = ({chain.n - 1},), got "
                              f"{np.shape(velocity_guess)}")

@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold.ensemble import chunk_bounds, default_chunk_size, map_chunks
 from manifold.lyapunov import LyapunovResult, lyapunov_spectrum
-from manifold.options import DEFAULT_PRECISION, Precision, check_group, takes_option_groups
+from manifold.options import DEFAULT_PRECISION, DEFAULT_START, Precision, StartCheck, check_group, takes_option_groups
 from manifold.precision import is_double
 from manifold.progress import ProgressArgument
 from manifold.validation import check_positive_int
@@ -46,8 +46,7 @@ def lyapunov_exponent(
     interval: float = 1.0,
     deviations: str = "perpendicular",
     precision: Precision = DEFAULT_PRECISION,
-    tangent_tol: float = 1e-9,
-    project_velocity: bool = False,
+    start: StartCheck = DEFAULT_START,
     **kwargs: Any,
 ) -> LyapunovResult:
     """The maximal finite-time Lyapunov exponent of the chain's free motion from ``hinges0`` (and, with ``k > 1``,
@@ -79,8 +78,9 @@ def lyapunov_exponent(
     precision
         :class:`manifold.Precision` ``(tol=...)``: heyoka's tolerance; float64 only (another ``fp_type`` raises
         ``ValueError``).
-    tangent_tol, project_velocity
-        The start checks of :func:`~linkage.motion.free_motion`.
+    start
+        :class:`manifold.StartCheck` ``(tangent_tol, project_velocity)``: the start check of
+        :func:`~linkage.motion.free_motion`.
     **kwargs
         ``rate``, ``compact_mode``, ``seed``, ``throw`` of :func:`manifold.lyapunov.lyapunov_spectrum`.
 
@@ -91,7 +91,7 @@ def lyapunov_exponent(
         ``history`` against ``times`` (``plot()`` draws it) and the trajectory's checks.
     """
     options = _spectrum_options(precision, kwargs)
-    _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
+    _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
     return lyapunov_spectrum(ChainSystem(chain), x0, v0, t_final, k=k, interval=interval, deviations=deviations,
                              **options)
 
@@ -108,8 +108,7 @@ def lyapunov_exponents(
     progress: ProgressArgument = False,
     chunk_size: int | None = None,
     precision: Precision = DEFAULT_PRECISION,
-    tangent_tol: float = 1e-9,
-    project_velocity: bool = False,
+    start: StartCheck = DEFAULT_START,
     **kwargs: Any,
 ) -> list[LyapunovResult]:
     """:func:`lyapunov_exponent` for many starts (rows of ``hinges0``, ``velocities0``, shape ``(N, n-1)``),
@@ -117,10 +116,10 @@ def lyapunov_exponents(
 
     Each start is its own estimate; a trajectory that fails its checks is
     returned with its ``status`` (``throw=False``) instead of stopping the
-    others.  ``precision`` and ``kwargs`` are those of :func:`lyapunov_exponent`.
+    others.  ``precision``, ``start`` and ``kwargs`` are those of :func:`lyapunov_exponent`.
     """
     options = _spectrum_options(precision, {"throw": False, **kwargs})
-    _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, tangent_tol, project_velocity)
+    _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, start)
     size = (default_chunk_size(len(X0), 1, backend, client) if chunk_size is None
             else check_positive_int("chunk_size", chunk_size))
     bounds = chunk_bounds(len(X0), size)

@@ -24,12 +24,13 @@ from numpy.typing import ArrayLike, NDArray
 from manifold import GeodesicSolution, InducedMetric, solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.constrained import solve_constrained
-from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
+from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, PROJECTED_START, Precision, SaveAt,
+                              StartCheck, check_group, takes_option_groups)
 from manifold.progress import ProgressArgument
 from manifold.sundman import SundmanStepper
 
 from .chain import Chain
-from .constraints import TANGENT_TOL, ChainSystem, start_state
+from .constraints import ChainSystem, start_state
 from .ensemble import EnsembleMotion, free_motions
 from .lyapunov import lyapunov_exponent, lyapunov_exponents
 from .time_factor import ChainTimeFactor
@@ -175,8 +176,7 @@ def _method_options(method: str) -> tuple[str, ...]:
     solver = solve_constrained if method == "hinges" else solve_chart_exp_ode
     parameters = inspect.signature(solver).parameters
     return tuple(sorted(name for name, p in parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY
-                        and name not in ("metric", "progress", "carry", "project_velocity", "tangent_tol", "save",
-                                         "precision")))
+                        and name not in ("metric", "progress", "carry", "start", "save", "precision")))
 
 
 #: A chain whose dominant side falls short of the others' sum by less than this share of the perimeter is nearly
@@ -226,8 +226,7 @@ def free_motion(
     method: str = AUTO,
     save: SaveAt = DEFAULT_SAVE,
     precision: Precision = DEFAULT_PRECISION,
-    tangent_tol: float = TANGENT_TOL,
-    project_velocity: bool = False,
+    start: StartCheck = DEFAULT_START,
     progress: ProgressArgument = None,
     **kwargs: Any,
 ) -> ChainMotion:
@@ -267,7 +266,7 @@ def free_motion(
     hinges0, velocity0
         Complex interior hinges (must close to ``1e-9``) and their velocity
         (tangent: ``max_k l_k |(G v)_k| <= tangent_tol * max(1, |v|)``,
-        :func:`linkage.constraints.start_state`).
+        :func:`linkage.constraints.start_state`, with ``start.tangent_tol``).
     t_final
         Final time (finite, nonzero; negative integrates backward).
     method
@@ -281,10 +280,9 @@ def free_motion(
         :class:`manifold.Precision` ``(fp_type, tol)``: the working precision (float64 by default; long
         double, real128, :class:`manifold.precision.MultiPrecision`) and heyoka's tolerance (``None``: the
         method's default for ``fp_type``).
-    tangent_tol
-        Tolerance of the tangency check.
-    project_velocity
-        Project a non-tangent ``velocity0`` K-orthogonally instead of refusing it.
+    start
+        :class:`manifold.StartCheck` ``(tangent_tol, project_velocity)``: the tolerance of the tangency check
+        (default ``1e-9``), and whether a non-tangent ``velocity0`` is projected K-orthogonally instead of refused.
     progress
         ``True`` draws a tqdm bar of the time reached and prints a line per
         compile (what is compiled, and that heyoka caches it on disk); a
@@ -303,8 +301,8 @@ def free_motion(
     if method == AUTO:
         method = choose_method(chain, kwargs)
     _check_options(method, kwargs)
-    _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
-    # velocity0 is tangent to tangent_tol (checked above): the solvers' own projection only removes rounding
+    _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
+    # velocity0 is tangent to start.tangent_tol (checked above): the chart solver's projection only removes rounding
     if method == "hinges":
         solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, precision=precision, save=save,
                                      metric=chart_metric(chain), progress=progress, **kwargs)
@@ -314,5 +312,5 @@ def free_motion(
                                                velocity=_default_velocity(chain, kwargs))
             precision = dataclasses.replace(precision, tol=None)  # the stepper holds it
         solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, precision=precision, save=save,
-                                       project_velocity=True, progress=progress, **kwargs)
+                                       start=PROJECTED_START, progress=progress, **kwargs)
     return ChainMotion(chain, solution)

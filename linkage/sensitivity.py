@@ -32,12 +32,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold.compiled import default_tolerance
 from manifold.constrained import speed_scale
-from manifold.options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
+from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, Precision, SaveAt, StartCheck,
+                              check_group, takes_option_groups)
 from manifold.precision import unit_roundoff
-from manifold.validation import check_real
 
 from .chain import Chain
-from .constraints import TANGENT_TOL, ChainSystem
+from .constraints import ChainSystem
 from .geometry import checked_start, jacobi_field_from, tangent_basis_at
 
 __all__ = ["DEFAULT_THRESHOLD", "Sensitivity", "SensitivityWarning", "sensitivity"]
@@ -88,8 +88,8 @@ class Sensitivity:
 
 @takes_option_groups
 def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, *, save: SaveAt = DEFAULT_SAVE,
-                precision: Precision = DEFAULT_PRECISION, method: str = "hinges", threshold: float = DEFAULT_THRESHOLD,
-                **options: Any) -> Sensitivity:
+                precision: Precision = DEFAULT_PRECISION, method: str = "hinges", start: StartCheck = DEFAULT_START,
+                threshold: float = DEFAULT_THRESHOLD, **options: Any) -> Sensitivity:
     """The amplification ``A(t)`` of the linearised flow from ``(hinges0, velocity0)`` over ``T``.
 
     It warns with :class:`SensitivityWarning` when the estimated relative error of the state at ``T``
@@ -97,12 +97,13 @@ def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float
 
     Parameters
     ----------
-    chain, hinges0, velocity0, T, save, precision, method
-        As in :func:`linkage.geometry.jacobi_field` (``save=SaveAt(t_eval=...)``; default: every step).
+    chain, hinges0, velocity0, T, save, precision, method, start
+        As in :func:`linkage.geometry.jacobi_field` (``save=SaveAt(t_eval=...)``; default: every step;
+        ``start=StartCheck(tangent_tol, project_velocity)``, the one check of the start).
     threshold
         Warn above this estimated relative error (``> 0``; default :data:`DEFAULT_THRESHOLD`).
     **options
-        Passed to :func:`linkage.geometry.jacobi_field` (``tangent_tol``, ``throw``, ...).
+        Passed to :func:`linkage.geometry.jacobi_field` (``throw``, ``rate``, ...).
         The fields' invariants are not checked (they lose digits with the growth they measure); the geodesic's
         energy and rods are.
 
@@ -118,17 +119,16 @@ def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float
     threshold = float(threshold)
     if not threshold > 0 or not np.isfinite(threshold):
         raise ValueError(f"threshold must be a finite number > 0, got {threshold!r}")
-    tangent_tol = check_real("tangent_tol", options.pop("tangent_tol", TANGENT_TOL), positive=True)
     precision = check_group("precision", precision, Precision)
-    start, grid = checked_start(chain, hinges0, velocity0, T, save, tangent_tol, method)
-    v0 = start.v0
-    basis = tangent_basis_at(start.constraints, start.x0)
+    hinge_start, grid = checked_start(chain, hinges0, velocity0, T, save, start, method)
+    v0 = hinge_start.v0
+    basis = tangent_basis_at(hinge_start.constraints, hinge_start.x0)
     energy = float(0.5 * v0 @ chain.ambient_metric @ v0)
     # at rest there is no speed to set a time unit; the run's own length serves (A then measures J(T) = T U0)
     tau = 1.0 / (np.sqrt(2 * energy) * speed_scale(ChainSystem(chain))) if energy > 0 else abs(float(T))
     zeros = np.zeros_like(basis)
-    fields = jacobi_field_from(start, np.concatenate([basis, zeros]), np.concatenate([zeros, basis / tau]), grid,
-                               precision, method, tangent_tol, False, options)
+    fields = jacobi_field_from(hinge_start, np.concatenate([basis, zeros]), np.concatenate([zeros, basis / tau]),
+                               grid, precision, method, start, False, options)
     solution = fields.carried.solution
     R = np.linalg.cholesky(chain.ambient_metric).T  # |x|_K = |R x|
     J = chain.to_point(fields.field) @ R.T  # (times, 2k, N), Euclidean after R

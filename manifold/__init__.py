@@ -17,7 +17,7 @@ from .compiled import ChartNumerics, CompiledFamily, compiled
 from .family import ChartFamily
 from .geodesic_solver import solve_chart_exp_ode
 from .metric import InducedMetric
-from .options import Precision, SaveAt
+from .options import Precision, SaveAt, StartCheck
 from .sampling import BoxProposal, Proposal, VolumeSample, sample_velocities, sample_volume
 from .solution import CallableDense, ChartSwitch, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
 from .steppers import ScipyStepper, Stepper, TaylorStepper
@@ -26,6 +26,6 @@ from .symbolic import SymbolicChart
 __all__ = [
     "Atlas", "BoxProposal", "CallableDense", "Chart", "ChartDomainError", "ChartFamily", "ChartNumerics", "ChartSwitch",
     "CompiledFamily", "GeodesicIntegrationError", "GeodesicSolution", "InducedMetric", "Precision", "Proposal",
-    "SaveAt", "ScipyStepper", "Segment", "SolveStatus", "SolverStats", "Stepper", "SymbolicChart", "TaylorStepper",
+    "SaveAt", "ScipyStepper", "Segment", "SolveStatus", "SolverStats", "StartCheck", "Stepper", "SymbolicChart", "TaylorStepper",
     "VolumeSample", "compiled", "sample_velocities", "sample_volume", "solve_chart_exp_ode",
 ]

@@ -29,7 +29,8 @@ from .compiled import compiled
 from .events import STOP, WRAP
 from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible, settled
 from .metric import InducedMetric
-from .options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
+from .options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, Precision, SaveAt, StartCheck, check_group,
+                      takes_option_groups)
 from .precision import as_fp, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, PointDense, Segment, SolverStats, SolveStatus
@@ -71,8 +72,7 @@ def solve_chart_exp_ode(
     q_out: float | None = None,
     switching: bool = True,
     form: str = "embedded",
-    project_velocity: bool = False,
-    tangent_tol: float = 1e-9,
+    start: StartCheck = DEFAULT_START,
     save: SaveAt = DEFAULT_SAVE,
     max_switches: int = 1_000_000,
     chart: int | None = None,
@@ -106,10 +106,10 @@ def solve_chart_exp_ode(
         single-chart failure near a pole).
     form
         ``"embedded"`` (default) or ``"christoffel"`` (cross-check).
-    project_velocity
-        If true, replace ``v0`` by its K-orthogonal projection on the tangent
-        space; otherwise a ``v0`` off the tangent space by more than
-        ``tangent_tol * max(1, |v0|)`` raises ``ValueError``.
+    start
+        :class:`~manifold.options.StartCheck` ``(tangent_tol, project_velocity)``: a ``v0`` off the tangent
+        space by more than ``tangent_tol * max(1, |v0|)`` (default ``1e-9``) raises ``ValueError``, unless
+        ``project_velocity``: then it is replaced by its K-orthogonal projection on the tangent space.
     save
         :class:`~manifold.options.SaveAt` ``(t_eval, dense)``: the times (within ``[0, t_final]``, in
         integration order) at which points and velocities are recorded in ``sol.points``/``sol.velocities``,
@@ -145,8 +145,9 @@ def solve_chart_exp_ode(
         raise TypeError(f"metric must be a manifold.InducedMetric (an atlas with its metric), got {metric!r}")
     precision, save = check_group("precision", precision, Precision), check_group("save", save, SaveAt)
     fp_type, tol, dense, t_eval = precision.fp_type, precision.tol, save.keeps_dense(True), save.t_eval
+    start = check_group("start", start, StartCheck)
     report = as_callback(progress)
-    switching, project_velocity = check_bool("switching", switching), check_bool("project_velocity", project_velocity)
+    switching = check_bool("switching", switching)
     throw = check_bool("throw", throw)
     if isinstance(max_switches, (bool, np.bool_)) or not isinstance(max_switches, numbers.Integral) or max_switches < 1:
         raise ValueError(f"max_switches must be a positive integer, got {max_switches!r}")
@@ -159,7 +160,7 @@ def solve_chart_exp_ode(
         raise ValueError("give tol to the stepper (e.g. TaylorStepper(tol=...)), not beside it in precision=")
     with reporting(report):  # the start compiles the transfer and quality functions
         sol, i, a, c, q_event, t_end, grid, resting = _start(metric, p0, v0, t_final, fp_type, stepper, q_out,
-                                                             switching, project_velocity, tangent_tol, t_eval, chart)
+                                                             switching, start, t_eval, chart)
     switch_seconds = time.perf_counter() - wall0
     atlas, num, k = metric.atlas, sol.chart_numerics, metric.atlas.dim
     energy_tol = stepper.relative_tolerance(fp_type)
@@ -248,7 +249,7 @@ def solve_chart_exp_ode(
     return sol
 
 
-def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_velocity, tangent_tol, t_eval, chart):
+def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, start, t_eval, chart):
     """Validate the inputs; return the empty solution, the start state ``(i, a, c)``, ``q_out`` for the events,
     ``t_final`` as a float, the sorted output grid (or ``None``) and whether the start is :func:`at_rest`.
 
@@ -261,7 +262,6 @@ def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_
     if not all(isinstance(ch, SymbolicChart) for ch in atlas.charts):
         raise TypeError("geodesic solvers need SymbolicChart charts (heyoka expressions of the chart map)")
     t_final = check_real("t_final", t_final)
-    tangent_tol = check_real("tangent_tol", tangent_tol, positive=True)
     if q_out is None:
         q_out = atlas.switch_threshold
     else:
@@ -299,10 +299,11 @@ def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, project_
                          f"parameters give a point {moved:.3g} away (an ill-conditioned chart); the start is refused "
                          "rather than moved")
     off = float(np.max(np.abs((v_tan[0] - v0_fp).astype(float))))
-    if off > tangent_tol * max(1.0, float(np.max(np.abs(v0)))) and not project_velocity:
+    if off > start.tangent_tol * max(1.0, float(np.max(np.abs(v0)))) and not start.project_velocity:
         raise ValueError(
             f"v0 is not tangent at p0: it is {off:.3g} away from the tangent space "
-            f"(allowed {tangent_tol:g} * max(1, |v0|)); pass project_velocity=True to project it"
+            f"(allowed {start.tangent_tol:g} * max(1, |v0|)); pass start=StartCheck(project_velocity=True) to "
+            "project it"
         )
     if not np.isfinite(float(E0[0])):
         raise ValueError(f"v0 gives a non-finite kinetic energy {float(E0[0])} (|v0| = {np.max(np.abs(v0)):.3g})")

@@ -9,6 +9,7 @@ from scipy.optimize import brentq
 from charts import SuspensionChart
 from linkage import Chain, ConfigurationError
 from linkage.ambient import integrate_ambient
+from manifold import StartCheck
 
 from .conftest import unit_speed_start
 
@@ -225,7 +226,7 @@ def test_velocity_must_be_finite_and_tangent(good):
     with pytest.raises(ValueError, match=r"not tangent.*\|\(G v\)_k\| = [0-9.e-]+"):
         integrate_ambient(chain, h0, bad, 1.0)
     # projected instead: K-orthogonally, back onto (nearly) v0
-    sol = integrate_ambient(chain, h0, bad, 1.0, project_velocity=True)
+    sol = integrate_ambient(chain, h0, bad, 1.0, start=StartCheck(project_velocity=True))
     w = sol.velocities[0]
     assert np.max(np.abs(w - v0)) < 2e-6
     K = chain.ambient_metric

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from linkage import Chain
 from linkage.motion import free_motion, free_motions
-from manifold import SaveAt, SolveStatus
+from manifold import SaveAt, SolveStatus, StartCheck
 from manifold.constrained import constraint_bound, verdict
 from manifold.constrained_batch import judge_lanes
 from manifold.solution import energy_bound, energy_violation
@@ -347,13 +347,14 @@ def test_bad_starts_are_refused_with_their_index():
 
 
 def test_projected_starts_match_single_calls():
-    """``project_velocity=True``: non-tangent rows are projected exactly as ``free_motion`` projects them."""
+    """``StartCheck(project_velocity=True)``: non-tangent rows are projected exactly as ``free_motion`` projects them."""
     chain = Chain(4, 2.6)
     H, V = _starts(chain, 5, seed=8)
     W = V.copy()
     W[[1, 3]] += 0.3 * H[[1, 3]]  # a radial push: not tangent
-    singles = _singles(chain, H, W, 4.0, np.linspace(0, 4, 3), method="hinges", project_velocity=True, **FAST)
-    ens = free_motions(chain, H, W, 4.0, save=SaveAt(t_eval=np.linspace(0, 4, 3)), project_velocity=True, **FAST)
+    project = StartCheck(project_velocity=True)
+    singles = _singles(chain, H, W, 4.0, np.linspace(0, 4, 3), method="hinges", start=project, **FAST)
+    ens = free_motions(chain, H, W, 4.0, save=SaveAt(t_eval=np.linspace(0, 4, 3)), start=project, **FAST)
     assert _max_gap(ens, singles) <= 1e-12
     assert np.abs(ens.velocities[[0, 2, 4], 0] - V[[0, 2, 4]]).max() <= 1e-15  # tangent rows are left alone
     assert np.abs(ens.velocities[[1, 3], 0] - W[[1, 3]]).max() > 0.01

@@ -10,7 +10,7 @@ from charts import SuspensionChart
 from linkage import Chain
 from linkage.ambient import integrate_ambient
 from linkage.motion import free_motion
-from manifold import Precision, SaveAt, ScipyStepper, TaylorStepper, solve_chart_exp_ode
+from manifold import Precision, SaveAt, ScipyStepper, StartCheck, TaylorStepper, solve_chart_exp_ode
 
 HALF_PI = np.pi / 2
 
@@ -172,7 +172,7 @@ class TestBadInput:
         normal[:2] = p0[:2]  # radial on the first hinge: changes |e_1|
         with pytest.raises(ValueError, match="not tangent"):
             solve_chart_exp_ode(self.chain.metric(), p0, v0 + normal, 1.0)
-        sol = solve_chart_exp_ode(self.chain.metric(), p0, v0 + normal, 1.0, project_velocity=True)
+        sol = solve_chart_exp_ode(self.chain.metric(), p0, v0 + normal, 1.0, start=StartCheck(project_velocity=True))
         assert sol.relative_energy_error < 1e-12
 
     def test_outside_span(self):

@@ -17,7 +17,7 @@ from linkage import Chain
 from linkage.constraints import HingeConstraints
 from linkage.motion import free_motion
 from linkage.sampling import sample_starts
-from manifold import GeodesicIntegrationError, Precision, SaveAt, SolveStatus, solve_chart_exp_ode
+from manifold import GeodesicIntegrationError, Precision, SaveAt, SolveStatus, StartCheck, solve_chart_exp_ode
 from manifold.geodesic_solver import START_POINT_TOLERANCE
 from manifold.solution import energy_bound
 
@@ -115,10 +115,10 @@ def test_tangency_is_judged_well_with_very_unequal_masses():
 
 @pytest.mark.parametrize("gap", [1e-3, 1e-6, 1e-9])
 def test_the_start_point_is_never_moved(gap):
-    """rods (fold, 1, 1) at L = 2 + 1e-9 with project_velocity=True once started 3.8e-7 away, silently."""
+    """rods (fold, 1, 1) at L = 2 + 1e-9 with the velocity projected once started 3.8e-7 away, silently."""
     chain, h0, v0 = fold_start(4, 2 + gap)
     try:
-        motion = free_motion(chain, h0, v0, 1.0, project_velocity=True, throw=False)
+        motion = free_motion(chain, h0, v0, 1.0, start=StartCheck(project_velocity=True), throw=False)
     except ValueError as e:
         assert "cannot be represented" in str(e)
         return

@@ -13,10 +13,13 @@ from linkage import Chain, geometry
 from linkage.motion import free_motion, free_motions, lyapunov_exponent, lyapunov_exponents
 from linkage.sampling import sample_starts
 from linkage.sensitivity import sensitivity
-from manifold import Precision, SaveAt, solve_chart_exp_ode
+from linkage.ambient import integrate_ambient
+from linkage.constraints import HingeConstraints
+from manifold import Precision, SaveAt, StartCheck, solve_chart_exp_ode
 from manifold.carried import solve_carried
 from manifold.constrained import solve_constrained
-from manifold.options import MOVED_OPTIONS, check_group, refuse_moved_options, takes_option_groups
+from manifold.options import (DEFAULT_START, MOVED_OPTIONS, TANGENT_TOL, check_group, refuse_moved_options,
+                              takes_option_groups)
 from manifold.precision import MultiPrecision
 from manifold.steppers import TaylorStepper
 from manifold.transport import ParallelTransport
@@ -102,11 +105,32 @@ def test_a_group_of_the_wrong_kind_is_refused_by_name():
     assert check_group("precision", Precision(), Precision) == Precision()
 
 
+def test_start_check_checks_its_fields_once():
+    assert DEFAULT_START == StartCheck() == StartCheck(TANGENT_TOL, False) and TANGENT_TOL == 1e-9
+    check = StartCheck(np.float64(1e-6), np.bool_(True))
+    assert type(check.tangent_tol) is float and check.project_velocity is True
+    assert pickle.loads(pickle.dumps(check)) == check and hash(check) == hash(StartCheck(1e-6, True))
+
+
+@pytest.mark.parametrize("tol", [0, -1e-9, np.nan, np.inf, "1e-9", True, 1j])
+def test_start_check_refuses_a_tolerance_outside_its_range(tol):
+    with pytest.raises(ValueError, match=r"tangent_tol must be a real number in \(0, inf\)"):
+        StartCheck(tangent_tol=tol)
+
+
+@pytest.mark.parametrize("project", ["yes", 1, 0, None, np.array([True])])
+def test_start_check_project_velocity_must_be_a_bool(project):
+    with pytest.raises(TypeError, match="project_velocity must be True or False"):
+        StartCheck(project_velocity=project)
+
+
 @pytest.mark.parametrize("name, home", [
     ("t_eval", "save=SaveAt(t_eval=...)"),
     ("dense", "save=SaveAt(dense=...)"),
     ("fp_type", "precision=Precision(fp_type=...)"),
     ("tol", "precision=Precision(tol=...)"),
+    ("tangent_tol", "start=StartCheck(tangent_tol=...)"),
+    ("project_velocity", "start=StartCheck(project_velocity=...)"),
 ])
 def test_a_moved_keyword_names_its_new_home(name, home):
     assert name in MOVED_OPTIONS
@@ -124,6 +148,15 @@ def test_the_decorator_keeps_the_signature_and_refuses_moved_keywords():
     assert checked(2.0, rate=3.0)[::2] == (2.0, 3.0)
     with pytest.raises(TypeError, match=r"dense= is given as save=SaveAt\(dense=\.\.\.\)"):
         checked(2.0, dense=False)
+    # a keyword moved into a group the function does not take is not sent there: Python's own error
+    with pytest.raises(TypeError, match="unexpected keyword argument 'tangent_tol'"):
+        checked(2.0, tangent_tol=1e-9)
+
+
+def test_refusal_can_be_limited_to_the_groups_a_function_takes():
+    with pytest.raises(TypeError, match=re.escape("solve() does not take tol=: tol= is given as precision=")):
+        refuse_moved_options("solve", ["tol", "tangent_tol"], ("save", "precision"))
+    refuse_moved_options("solve", ["tangent_tol", "project_velocity"], ("save", "precision"))
 
 
 @pytest.mark.parametrize("solver", [solve_chart_exp_ode, solve_constrained, free_motion, free_motions, geometry.exp,
@@ -135,6 +168,68 @@ def test_every_public_solver_names_the_new_home_of_a_moved_keyword(solver, name,
     with pytest.raises(TypeError, match=re.escape(f"{solver.__name__}() does not take {name}=: {name}= is given "
                                                   f"as {home}")):
         solver(None, None, None, 1.0, **{name: None})
+
+
+#: Every public function that checks a start velocity, each called with its positional arguments as None.
+START_CHECKERS = [(solve_chart_exp_ode, 4), (free_motion, 4), (free_motions, 4), (geometry.exp, 4),
+                  (geometry.parallel_transport, 5), (geometry.jacobi_field, 6), (sensitivity, 4),
+                  (lyapunov_exponent, 4), (lyapunov_exponents, 4), (integrate_ambient, 4)]
+
+
+@pytest.mark.parametrize("solver, n_args", START_CHECKERS, ids=lambda f: getattr(f, "__name__", ""))
+@pytest.mark.parametrize("name", ["tangent_tol", "project_velocity"])
+def test_every_start_check_names_the_new_home_of_its_moved_keywords(solver, n_args, name):
+    with pytest.raises(TypeError, match=re.escape(f"{solver.__name__}() does not take {name}=: {name}= is given as "
+                                                  f"start=StartCheck({name}=...)")):
+        solver(*[None] * n_args, **{name: True})
+
+
+@pytest.mark.parametrize("solver, n_args", START_CHECKERS, ids=lambda f: getattr(f, "__name__", ""))
+def test_every_start_check_refuses_a_start_that_is_not_a_start_check(solver, n_args):
+    chain = Chain(4, 2.6)
+    h0, v0 = sample_starts(chain, 2, 0.5, np.random.default_rng(5))
+    if solver is solve_chart_exp_ode:
+        args = [chain.metric(), chain.to_point(h0[0]), chain.to_point(v0[0]), 1.0]
+    elif solver in (free_motions, lyapunov_exponents):
+        args = [chain, h0, v0, 1.0]
+    else:
+        args = [chain, h0[0], v0[0], *[v0[0]] * (n_args - 4), 1.0]
+    with pytest.raises(TypeError, match=r"start must be a manifold.StartCheck \(start=StartCheck\(...\)\), got"):
+        solver(*args, start={"project_velocity": True})
+
+
+def test_the_start_check_reaches_every_check_of_the_start_and_projects_only_the_velocity():
+    """A velocity tilted off the tangent space by 1e-7 of its size: refused by default and by a tolerance of 1e-8,
+    accepted at 1e-6 as it is, and projected (K-orthogonally: the projection of the tangent velocity is itself)
+    with ``project_velocity``.  A transported vector so tilted is refused however the velocity is checked."""
+    chain = Chain(4, 2.6)
+    h0, v0 = (a[0] for a in sample_starts(chain, 1, 0.5, np.random.default_rng(6)))
+    constraints, x0 = HingeConstraints(chain), chain.to_point(h0)
+    normal = np.linalg.lstsq(constraints.jacobian(x0), np.ones(chain.n), rcond=None)[0]  # G w != 0
+    tilted = v0 + 1e-7 * np.linalg.norm(chain.to_point(v0)) * chain.from_point(normal / np.linalg.norm(normal))
+    projected = chain.from_point(constraints.project_velocity(x0, chain.to_point(tilted)))
+    assert np.abs(projected - v0).max() < 1e-12 * np.abs(v0).max() and np.abs(tilted - v0).max() > 1e-8
+    for start in (DEFAULT_START, StartCheck(tangent_tol=1e-8)):
+        with pytest.raises(ValueError, match="velocity0 is not tangent"):
+            geometry.exp(chain, h0, tilted, 0.5, start=start)
+        with pytest.raises(ValueError, match="velocity0 is not tangent"):
+            lyapunov_exponent(chain, h0, tilted, 1.0, start=start)
+    as_given = geometry.exp(chain, h0, tilted, 0.5, start=StartCheck(tangent_tol=1e-6))
+    reference = geometry.exp(chain, h0, projected, 0.5)
+    assert geometry.exp(chain, h0, tilted, 0.5, start=StartCheck(project_velocity=True)).tobytes() == \
+        reference.tobytes()  # the same start velocity, bit for bit, so the same end
+    # accepted, the tilt is then removed by the hinge method's own completion of the start to the constraints
+    np.testing.assert_allclose(as_given, reference, rtol=0, atol=1e-12)
+    motion = geometry.parallel_transport(chain, h0, tilted, v0, 0.5, start=StartCheck(project_velocity=True))
+    np.testing.assert_allclose(motion.velocities[0], projected, rtol=0, atol=1e-15)  # the tilt was 1e-7
+    with pytest.raises(ValueError, match="vectors0 is not tangent"):
+        geometry.parallel_transport(chain, h0, v0, tilted, 0.5, start=StartCheck(project_velocity=True))
+    metric = chain.metric()
+    with pytest.raises(ValueError, match="v0 is not tangent at p0"):
+        solve_chart_exp_ode(metric, x0, chain.to_point(tilted), 0.5, save=SaveAt(dense=False))
+    sol = solve_chart_exp_ode(metric, x0, chain.to_point(tilted), 0.5, save=SaveAt(dense=False),
+                              start=StartCheck(tangent_tol=1e-6))
+    assert sol.status.name == "SUCCESS"
 
 
 def test_solve_carried_names_the_new_home_of_a_moved_keyword():

@@ -6,6 +6,7 @@ import pytest
 from benchmarks.baselines.rattle import integrate_rattle
 from linkage import Chain, ConfigurationError
 from linkage.ambient import integrate_ambient
+from manifold import StartCheck
 
 from .conftest import unit_speed_start
 
@@ -132,7 +133,7 @@ class TestErrors:
         with pytest.raises(ValueError, match="not tangent"):
             integrate_rattle(self.chain, self.h0, self.v0 + 0.1 * np.eye(3)[0] * normal[0], 1.0, 0.1)
         sol = integrate_rattle(self.chain, self.h0, self.v0 + 0.1 * np.eye(3)[0] * normal[0], 1.0, 0.1,
-                               project_velocity=True)
+                               start=StartCheck(project_velocity=True))
         assert np.max(sol.constraint_residual) < 1e-12
 
     @pytest.mark.parametrize("h", [0.0, -0.1, np.inf, np.nan, "x"])

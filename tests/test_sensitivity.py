@@ -2,7 +2,7 @@
 it implies, against finite differences of whole solves and against two methods' disagreement."""
 
 from __future__ import annotations
-from manifold import SaveAt
+from manifold import SaveAt, StartCheck
 
 import warnings
 
@@ -79,7 +79,7 @@ def test_a_bad_threshold_is_refused_by_name(bad):
 
 
 def test_the_start_is_checked_once_and_by_the_tangent_tolerance_given(monkeypatch):
-    """One ``start_state`` and one closure check per call; ``tangent_tol`` reaches that one check: a velocity
+    """One ``start_state`` and one closure check per call; ``StartCheck.tangent_tol`` reaches that one check: a velocity
     tilted off the tangent space by 1e-7 of its size is refused by default (1e-9) and accepted at 1e-6."""
     h0, v0 = _start()
     calls = {"start_state": 0, "check_one_configuration": 0}
@@ -103,5 +103,6 @@ def test_the_start_is_checked_once_and_by_the_tangent_tolerance_given(monkeypatc
     with pytest.raises(ValueError, match="velocity0 is not tangent"):
         sensitivity(CHAIN, h0, tilted, 0.1)
     with pytest.raises(ValueError, match="velocity0 is not tangent"):
-        sensitivity(CHAIN, h0, tilted, 0.1, tangent_tol=1e-8)
-    assert sensitivity(CHAIN, h0, tilted, 0.1, tangent_tol=1e-6).amplification[0] == pytest.approx(1.0, abs=1e-12)
+        sensitivity(CHAIN, h0, tilted, 0.1, start=StartCheck(tangent_tol=1e-8))
+    assert sensitivity(CHAIN, h0, tilted, 0.1, start=StartCheck(tangent_tol=1e-6)).amplification[0] == \
+        pytest.approx(1.0, abs=1e-12)

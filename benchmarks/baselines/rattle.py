@@ -51,6 +51,7 @@ from charts.chain_geometry import to_complex
 from linkage import Chain
 from linkage.constraints import start_state
 from linkage.constraints import HingeConstraints
+from manifold.options import DEFAULT_START, StartCheck
 from manifold.validation import check_real
 
 __all__ = ["RattleSolution", "integrate_rattle"]
@@ -162,8 +163,7 @@ def integrate_rattle(
     record_every: int = 1,
     newton_tol: float = NEWTON_TOL,
     max_newton_iterations: int = NEWTON_MAX_ITER,
-    tangent_tol: float = 1e-9,
-    project_velocity: bool = False,
+    start: StartCheck = DEFAULT_START,
 ) -> RattleSolution:
     """Integrate the free motion of ``chain`` by RATTLE with fixed step ``h``.
 
@@ -186,8 +186,8 @@ def integrate_rattle(
         (:meth:`Chain.check_configuration`, raises ``ConfigurationError``).
     velocity0
         Complex initial hinge velocities, finite and tangent:
-        ``max_k l_k |(G v)_k| <= tangent_tol * max(1, |v|)``, else ``ValueError``
-        -- unless ``project_velocity``.
+        ``max_k l_k |(G v)_k| <= start.tangent_tol * max(1, |v|)``, else ``ValueError``
+        -- unless ``start.project_velocity``.
     t_final
         Finite, nonzero end time; negative integrates backward (steps ``-h``).
         Need not be a multiple of ``h``: the last step is shortened.
@@ -199,11 +199,10 @@ def integrate_rattle(
         Newton stops when ``max_k |c_k(x_1)| <= newton_tol``.
     max_newton_iterations
         Newton iterations allowed per step; more raises ``RuntimeError``.
-    tangent_tol
-        Relative tolerance of the tangency check of ``velocity0``.
-    project_velocity
-        If true, project ``velocity0`` K-orthogonally onto the tangent space
-        instead of refusing a non-tangent one.
+    start
+        :class:`manifold.StartCheck` ``(tangent_tol, project_velocity)``: the relative tolerance of the
+        tangency check of ``velocity0``, and whether a non-tangent one is projected K-orthogonally onto the
+        tangent space instead of refused.
 
     Returns
     -------
@@ -225,7 +224,7 @@ def integrate_rattle(
     if isinstance(max_newton_iterations, bool) or not isinstance(max_newton_iterations, (int, np.integer)) \
             or max_newton_iterations < 1:
         raise ValueError(f"max_newton_iterations must be an integer >= 1, got {max_newton_iterations!r}")
-    system, x, v, t_final = start_state(chain, hinges0, velocity0, t_final, tangent_tol, project_velocity)
+    system, x, v, t_final = start_state(chain, hinges0, velocity0, t_final, start)
 
     steps = _step_sizes(t_final, h)
     n_steps = len(steps)

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from manifold.budget import Budget
-from manifold.options import Precision, SaveAt
+from manifold.options import DEFAULT_START, Precision, SaveAt
 from manifold.progress import ProgressUpdate
 from manifold.solution import SolveStatus
 
@@ -244,7 +244,7 @@ def motion_request(body: object, limits: Limits, *, fields: tuple[str, ...] = MO
     hinges = parse_configuration(chain, "hinges", body["hinges"])
     velocity = parse_complex("velocity", body["velocity"], chain.n - 1)
     try:
-        start_state(chain, hinges, velocity, T, 1e-9, False)
+        start_state(chain, hinges, velocity, T, DEFAULT_START)
     except ValueError as err:
         raise RequestError("velocity", f"is not tangent to the constraints at hinges: {err}") from None
     if not np.any(velocity):
