@@ -13,9 +13,8 @@ from typing import Any
 from numpy.typing import ArrayLike, NDArray
 
 from manifold.ensemble import chunk_bounds, default_chunk_size, map_chunks
-from manifold.lyapunov import LyapunovResult, lyapunov_spectrum
-from manifold.options import DEFAULT_PRECISION, DEFAULT_START, Precision, StartCheck, check_group, takes_option_groups
-from manifold.precision import is_double
+from manifold.lyapunov import LyapunovResult, float64_precision, lyapunov_spectrum
+from manifold.options import DEFAULT_PRECISION, DEFAULT_START, Precision, StartCheck, takes_option_groups
 from manifold.progress import ProgressArgument
 from manifold.validation import check_positive_int
 
@@ -23,16 +22,6 @@ from .chain import Chain
 from .constraints import ChainSystem, start_state, start_states
 
 __all__ = ["lyapunov_exponent", "lyapunov_exponents"]
-
-
-def _spectrum_options(precision: Precision, options: dict[str, Any]) -> dict[str, Any]:
-    """The keywords of :func:`manifold.lyapunov.lyapunov_spectrum`: ``precision``'s tolerance with the ``options``;
-    ``ValueError`` for a ``precision`` other than float64, the only one of its tangent integrators."""
-    precision = check_group("precision", precision, Precision)
-    if not is_double(precision.fp_type):
-        raise ValueError(f"Lyapunov exponents are computed in float64, got precision=Precision(fp_type="
-                         f"{precision.fp_type!r})")
-    return {"tol": precision.tol, **options}
 
 
 @takes_option_groups
@@ -90,10 +79,9 @@ def lyapunov_exponent(
         ``exponent`` (the maximal one), ``exponents``, the convergence
         ``history`` against ``times`` (``plot()`` draws it) and the trajectory's checks.
     """
-    options = _spectrum_options(precision, kwargs)
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
     return lyapunov_spectrum(ChainSystem(chain), x0, v0, t_final, k=k, interval=interval, deviations=deviations,
-                             **options)
+                             precision=precision, **kwargs)
 
 
 @takes_option_groups
@@ -118,7 +106,7 @@ def lyapunov_exponents(
     returned with its ``status`` (``throw=False``) instead of stopping the
     others.  ``precision``, ``start`` and ``kwargs`` are those of :func:`lyapunov_exponent`.
     """
-    options = _spectrum_options(precision, {"throw": False, **kwargs})
+    options = {"precision": float64_precision(precision), "throw": False, **kwargs}  # refused here, not per chunk
     _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, start)
     size = (default_chunk_size(len(X0), 1, backend, client) if chunk_size is None
             else check_positive_int("chunk_size", chunk_size))

@@ -43,11 +43,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from .constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, verdict
 from .interrupt import INTERRUPTED, SolveInterrupted, interruptible, propagate_until, settled
+from .options import DEFAULT_PRECISION, Precision, check_group, takes_option_groups
+from .precision import is_double
 from .solution import SolveStatus, energy_violation
-from .steppers import MAX_TOLERANCE, taylor_relative_tolerance
+from .steppers import taylor_relative_tolerance
 from .validation import check_bool, check_positive_int, check_real, real_array
 
-__all__ = ["DEVIATIONS", "LyapunovError", "LyapunovResult", "lyapunov_spectrum"]
+__all__ = ["DEVIATIONS", "LyapunovError", "LyapunovResult", "float64_precision", "lyapunov_spectrum"]
 
 #: Which deviations are followed (see the module docstring).
 DEVIATIONS = ("perpendicular", "tangent")
@@ -131,6 +133,17 @@ class LyapunovError(RuntimeError):
         self.result = result
 
 
+def float64_precision(precision: Precision) -> Precision:
+    """``precision`` if it is a :class:`~manifold.options.Precision` in float64 (by any name), the type of the
+    tangent integrator; ``TypeError`` or ``ValueError`` naming ``precision`` otherwise."""
+    precision = check_group("precision", precision, Precision)
+    if not is_double(precision.fp_type):
+        raise ValueError(f"Lyapunov exponents are computed in float64, got precision=Precision(fp_type="
+                         f"{precision.fp_type!r})")
+    return precision
+
+
+@takes_option_groups
 def lyapunov_spectrum(
     system: ConstrainedSystem,
     x0: ArrayLike,
@@ -140,7 +153,7 @@ def lyapunov_spectrum(
     k: int = 1,
     interval: float = 1.0,
     deviations: str = "perpendicular",
-    tol: float | None = None,
+    precision: Precision = DEFAULT_PRECISION,
     rate: float = 1.0,
     compact_mode: bool = True,
     seed: int = 0,
@@ -165,9 +178,12 @@ def lyapunov_spectrum(
         stay far from overflow; 1 is safe for exponents below 100).
     deviations
         ``"perpendicular"`` (default) or ``"tangent"`` (module docstring).
-    tol, rate
-        heyoka's tolerance (``None``: machine epsilon) and the Baumgarte rate,
-        as in :func:`~manifold.constrained.solve_constrained`.
+    precision
+        :class:`~manifold.options.Precision` ``(tol=...)``: heyoka's tolerance (``None``: machine epsilon), as
+        in :func:`~manifold.constrained.solve_constrained`; float64 only (the tangent integrator's type): another
+        ``fp_type`` raises ``ValueError``.
+    rate
+        The Baumgarte rate, as in :func:`~manifold.constrained.solve_constrained`.
     compact_mode
         heyoka's compact mode for the variational system (``k`` times more
         equations: compact mode compiles it in seconds, once per ``k`` and
@@ -185,8 +201,7 @@ def lyapunov_spectrum(
     """
     t_final = check_real("t_final", t_final, positive=True)
     interval = check_real("interval", interval, positive=True)
-    if tol is not None:
-        tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
+    tol = float64_precision(precision).tol
     rate = check_real("rate", rate, positive=True)
     compact_mode, throw = check_bool("compact_mode", compact_mode), check_bool("throw", throw)
     if deviations not in DEVIATIONS:

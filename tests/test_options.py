@@ -14,10 +14,11 @@ from linkage.motion import free_motion, free_motions, lyapunov_exponent, lyapuno
 from linkage.sampling import sample_starts
 from linkage.sensitivity import sensitivity
 from linkage.ambient import integrate_ambient
-from linkage.constraints import HingeConstraints
+from linkage.constraints import ChainSystem, HingeConstraints
 from manifold import Precision, SaveAt, StartCheck, solve_chart_exp_ode
 from manifold.carried import solve_carried
 from manifold.constrained import solve_constrained
+from manifold.lyapunov import lyapunov_spectrum
 from manifold.options import (DEFAULT_START, MOVED_OPTIONS, TANGENT_TOL, check_group, refuse_moved_options,
                               takes_option_groups)
 from manifold.precision import MultiPrecision
@@ -232,6 +233,14 @@ def test_the_start_check_reaches_every_check_of_the_start_and_projects_only_the_
     assert sol.status.name == "SUCCESS"
 
 
+def test_lyapunov_spectrum_takes_its_tolerance_in_precision():
+    with pytest.raises(TypeError, match=re.escape("lyapunov_spectrum() does not take tol=: tol= is given as "
+                                                  "precision=Precision(tol=...)")):
+        lyapunov_spectrum(None, None, None, 1.0, tol=1e-10)
+    with pytest.raises(TypeError, match=r"precision must be a manifold.Precision"):
+        lyapunov_spectrum(None, None, None, 1.0, precision=1e-10)
+
+
 def test_solve_carried_names_the_new_home_of_a_moved_keyword():
     with pytest.raises(TypeError, match=re.escape("solve_carried() does not take tol=: tol= is given as "
                                                   "precision=Precision(tol=...)")):
@@ -257,6 +266,11 @@ def test_the_float64_only_functions_take_float64_by_any_name_and_refuse_the_othe
     for name in ("longdouble", "real128"):
         with pytest.raises(ValueError, match="Lyapunov exponents are computed in float64"):
             lyapunov_exponent(chain, h0[0], v0[0], 1.0, precision=Precision(name))
+        with pytest.raises(ValueError, match="Lyapunov exponents are computed in float64"):
+            lyapunov_spectrum(ChainSystem(chain), chain.to_point(h0[0]), chain.to_point(v0[0]), 1.0,
+                              precision=Precision(name))
+        with pytest.raises(ValueError, match="Lyapunov exponents are computed in float64"):  # before any chunk runs
+            lyapunov_exponents(chain, h0, v0, 1.0, precision=Precision(name), backend="threads")
         with pytest.raises(ValueError, match="log shoots in float64"):
             geometry.log(chain, h0[0], h0[0], precision=Precision(name))
     for name in (float, np.float64, "float64"):  # the same configuration: the zero velocity, at once
