@@ -42,7 +42,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
 from manifold import CallableDense, GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
-from manifold.options import DEFAULT_START, StartCheck, takes_option_groups
+from manifold.options import DEFAULT_SAVE, DEFAULT_START, SaveAt, StartCheck, check_group, takes_option_groups
 from manifold.validation import check_bool, check_real
 
 from .chain import Chain
@@ -75,7 +75,7 @@ def integrate_ambient(
     velocity0: ArrayLike,
     t_final: float,
     *,
-    t_eval: ArrayLike | None = None,
+    save: SaveAt = DEFAULT_SAVE,
     method: str = "DOP853",
     rtol: float = 1e-12,
     atol: float = 1e-12,
@@ -110,10 +110,11 @@ def integrate_ambient(
         else ``ValueError`` -- unless ``start.project_velocity``.
     t_final
         Finite, nonzero end time; negative integrates backward from ``t = 0``.
-    t_eval
-        Output times within ``[0, t_final]`` (evaluated from the dense output);
-        default: the solver's steps.  Recorded in ``motion.times``,
-        ``motion.hinges``, ``motion.velocities``.
+    save
+        :class:`manifold.SaveAt` ``(t_eval)``: output times within ``[0, t_final]``, in integration order
+        (evaluated from the dense output); default: the solver's steps.  Recorded in ``motion.times``,
+        ``motion.hinges``, ``motion.velocities``.  The dense output is always kept (the grid is read from it):
+        ``dense=False`` is refused.
     method, rtol, atol
         Passed to :func:`scipy.integrate.solve_ivp` (any of its methods).
     project
@@ -141,16 +142,14 @@ def integrate_ambient(
         segments are in hinge coordinates (``chart=None``): chart parameters
         come on demand from the best chart of the atlas, where the chain has one.
     """
+    save = check_group("save", save, SaveAt)
+    if not save.keeps_dense(True):
+        raise TypeError("integrate_ambient reads its grid from dense output: save=SaveAt(dense=False) is not taken")
     system, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
+    t_eval = save.grid(t_final)
     interval = check_real("projection_interval", projection_interval, positive=True) if project else None
     rtol, atol = check_real("rtol", rtol, positive=True), check_real("atol", atol, positive=True)
     project, throw = check_bool("project", project), check_bool("throw", throw)
-
-    if t_eval is not None:
-        t_eval = np.asarray(t_eval, dtype=float)
-        lo, hi = sorted((0.0, t_final))
-        if t_eval.ndim != 1 or not np.all((t_eval >= lo) & (t_eval <= hi)):
-            raise ValueError(f"t_eval must be a 1-d array of times within [0, {t_final:g}], got {t_eval}")
 
     m = system.ambient_dim
 

@@ -9,7 +9,7 @@ from scipy.optimize import brentq
 from charts import SuspensionChart
 from linkage import Chain, ConfigurationError
 from linkage.ambient import integrate_ambient
-from manifold import StartCheck
+from manifold import SaveAt, StartCheck
 
 from .conftest import unit_speed_start
 
@@ -97,7 +97,7 @@ def test_projection_puts_the_state_back_on_the_constraints():
     h0, v0 = start(chain, [0.2, -0.7, 0.9, 2.0], [1.0, -0.3, 0.4, 0.8])
     T, dt = 10.0, 0.25
     marks = np.linspace(0, T, 41)  # the projection points
-    sol = integrate_ambient(chain, h0, v0, T, project=True, projection_interval=dt, t_eval=marks)
+    sol = integrate_ambient(chain, h0, v0, T, project=True, projection_interval=dt, save=SaveAt(t_eval=marks))
     assert sol.success and np.array_equal(sol.times, marks)
     assert np.max(sol.closure_residuals) < 1e-12
     assert relative_energy_error(sol) < 1e-10
@@ -191,7 +191,7 @@ def test_t_eval_and_calls_agree_with_shapes():
     chain = Chain(4, 3.5)
     h0, v0 = start(chain, [0.2, 0.4], [0.3, 1.0])
     t = np.array([0.0, 0.3, 1.1, 2.0])
-    sol = integrate_ambient(chain, h0, v0, 2.0, t_eval=t)
+    sol = integrate_ambient(chain, h0, v0, 2.0, save=SaveAt(t_eval=t))
     assert np.array_equal(sol.times, t) and sol.hinges.shape == sol.velocities.shape == (4, 3)
     assert sol.energies.shape == sol.closure_residuals.shape == (4,)
     h, v = sol(t)
@@ -247,9 +247,15 @@ def test_other_bad_options(good):
     with pytest.raises(ValueError, match="projection_interval"):
         integrate_ambient(chain, h0, v0, 1.0, project=True, projection_interval=0.0)
     with pytest.raises(ValueError, match="t_eval"):
-        integrate_ambient(chain, h0, v0, 1.0, t_eval=[0.5, 1.5])
+        integrate_ambient(chain, h0, v0, 1.0, save=SaveAt(t_eval=[0.5, 1.5]))
     with pytest.raises(ValueError, match="t_eval"):
-        integrate_ambient(chain, h0, v0, -1.0, t_eval=[0.5])
+        integrate_ambient(chain, h0, v0, -1.0, save=SaveAt(t_eval=[0.5]))
+    with pytest.raises(ValueError, match="in integration order"):
+        integrate_ambient(chain, h0, v0, 1.0, save=SaveAt(t_eval=[0.5, 0.25]))
+    with pytest.raises(TypeError, match=r"reads its grid from dense output: save=SaveAt\(dense=False\) is not taken"):
+        integrate_ambient(chain, h0, v0, 1.0, save=SaveAt(t_eval=[0.5], dense=False))
+    with pytest.raises(TypeError, match=r"integrate_ambient\(\) does not take t_eval=: t_eval= is given as save="):
+        integrate_ambient(chain, h0, v0, 1.0, t_eval=[0.5])
 
 
 def test_calls_outside_the_span_are_refused(good):

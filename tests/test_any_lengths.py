@@ -67,7 +67,7 @@ def test_hinge_method_agrees_with_the_ambient_reference(lengths, L, kind, masses
     ts = np.linspace(0, T, 41)
     # compact mode: one cold compile per (n, mass sparsity) in seconds (CI starts cold)
     hinges = free_motion(chain, h0, v0, T, method="hinges", save=SaveAt(t_eval=ts), compact_mode=True)
-    ref = integrate_ambient(chain, h0, v0, T, t_eval=ts, rtol=1e-13, atol=1e-13)
+    ref = integrate_ambient(chain, h0, v0, T, save=SaveAt(t_eval=ts), rtol=1e-13, atol=1e-13)
     assert hinges.success and ref.success
     assert np.abs(hinges.hinges - ref.hinges).max() <= 1e-9
     assert np.abs(hinges.velocities - ref.velocities).max() <= 1e-9
@@ -159,7 +159,7 @@ def test_property_hinge_method_matches_reference_for_any_generic_lengths(case):
     h0, v0 = start(chain, rng, x, flips)
     ts = np.linspace(0, 2.0, 9)
     hinges = free_motion(chain, h0, v0, 2.0, method="hinges", save=SaveAt(t_eval=ts), compact_mode=True)
-    ref = integrate_ambient(chain, h0, v0, 2.0, t_eval=ts, rtol=1e-13, atol=1e-13)
+    ref = integrate_ambient(chain, h0, v0, 2.0, save=SaveAt(t_eval=ts), rtol=1e-13, atol=1e-13)
     scale = float(chain.lengths.sum() + chain.L)
     assert np.abs(hinges.hinges - ref.hinges).max() <= 1e-9 * scale
     assert hinges.relative_energy_error <= 1e-13
@@ -180,7 +180,7 @@ def test_a_scaled_chain_moves_as_the_chain(scale):
     # heyoka's tolerance acts as an absolute one on states below 1)
     assert ms.n_steps <= 1.1 * m.n_steps
     assert np.abs(ms.hinges / scale - m.hinges).max() <= 1e-12
-    ref = integrate_ambient(big, scale * h0, scale * v0, 10.0, t_eval=ts, rtol=1e-13, atol=1e-13 * scale)
+    ref = integrate_ambient(big, scale * h0, scale * v0, 10.0, save=SaveAt(t_eval=ts), rtol=1e-13, atol=1e-13 * scale)
     assert np.abs(ref.hinges - ms.hinges).max() <= 1e-9 * scale
 
 

@@ -6,7 +6,7 @@ import pytest
 from benchmarks.baselines.rattle import integrate_rattle
 from linkage import Chain, ConfigurationError
 from linkage.ambient import integrate_ambient
-from manifold import StartCheck
+from manifold import SaveAt, StartCheck
 
 from .conftest import unit_speed_start
 
@@ -24,7 +24,7 @@ CASES = [
 @pytest.mark.parametrize("chain, a, c", CASES)
 def test_second_order_convergence_against_the_ambient_reference(chain, a, c):
     h0, v0 = start(chain, a, c)
-    ref = integrate_ambient(chain, h0, v0, 1.0, t_eval=[1.0], rtol=1e-12, atol=1e-12)
+    ref = integrate_ambient(chain, h0, v0, 1.0, save=SaveAt(t_eval=[1.0]), rtol=1e-12, atol=1e-12)
     hs = [0.1, 0.05, 0.025, 0.0125]
     err = []
     for h in hs:
@@ -95,7 +95,7 @@ def test_negative_ragged_time_and_record_every():
     assert sol.n_steps == 11
     np.testing.assert_allclose(sol.t, [0.0, -0.3, -0.6, -0.9, -1.03], rtol=0, atol=1e-15)
     assert sol.t[-1] == -1.03 and sol.hinges.shape == (5, 3) and sol.velocities.shape == (5, 3)
-    ref = integrate_ambient(chain, h0, v0, -1.03, t_eval=[-1.03])
+    ref = integrate_ambient(chain, h0, v0, -1.03, save=SaveAt(t_eval=[-1.03]))
     assert np.max(np.abs(sol.hinges[-1] - ref.hinges[-1])) < 2e-3  # O(h^2), h = 0.1
     # a t_final that is a multiple of h up to rounding leaves no sliver of a step
     assert integrate_rattle(chain, h0, v0, 0.3, 0.1).n_steps == 3

@@ -162,8 +162,9 @@ def scipy_hinges(chain: Chain, p0, v0, T, ts, rtol, method: str = "DOP853") -> R
 def ambient(chain: Chain, p0, v0, T, ts, rtol, project: bool = False) -> Run:
     """Method 4: hinge space with Lagrange multipliers (DOP853), optionally projected."""
     name = "ambient DOP853" + (" + projection" if project else "")
-    sol, wall = _timed(lambda: integrate_ambient(chain, chain.from_point(p0), chain.from_point(v0), T, t_eval=ts,
-                                                  rtol=rtol, atol=rtol, project=project, throw=False))
+    sol, wall = _timed(lambda: integrate_ambient(chain, chain.from_point(p0), chain.from_point(v0), T,
+                                                  save=SaveAt(t_eval=ts), rtol=rtol, atol=rtol, project=project,
+                                                  throw=False))
     return Run(name, rtol, wall, sol.times, sol.hinges, sol.energies, None if sol.success else sol.solution.message,
                sol.n_steps)
 
