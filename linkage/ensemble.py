@@ -213,7 +213,7 @@ def free_motions(
     if batchable:
         options = {k: v for k, v in kwargs.items() if k in ("rate", "compact_mode")}
         solution = solve_constrained_ensemble(
-            ChainSystem(chain), X0, V0, t_final, t_eval=grid, tol=precision.tol, batch_size=batch_size,
+            ChainSystem(chain), X0, V0, t_final, save=save, precision=precision, batch_size=batch_size,
             chunk_size=chunk_size, backend=backend, client=client, progress=progress, **options)
         return EnsembleMotion(chain, solution)
     if batch_size not in (None, 1):

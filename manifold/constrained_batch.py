@@ -30,10 +30,12 @@ from numpy.typing import ArrayLike, NDArray
 from .constrained import (ConstrainedGeometry, ConstrainedSystem, compiled_constrained, constraint_bound,
                           default_compact_mode, verdict)
 from .ensemble import EnsembleSolution, chunk_bounds, default_chunk_size, run_chunks
+from .options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
+from .precision import is_double
 from .progress import ProgressArgument
 from .solution import SolveStatus, energy_bound, energy_violation
-from .steppers import MAX_TOLERANCE, taylor_relative_tolerance
-from .validation import check_bool, check_positive_int, check_real, check_time_grid, real_array
+from .steppers import taylor_relative_tolerance
+from .validation import check_bool, check_positive_int, check_real, real_array
 
 __all__ = ["judge_lanes", "solve_constrained_chunk", "solve_constrained_ensemble"]
 
@@ -48,16 +50,17 @@ DEFAULT_WIDTHS = {False: 1, True: 2}
 METHOD = "constrained-taylor batch (baumgarte)"
 
 
+@takes_option_groups
 def solve_constrained_ensemble(
     system: ConstrainedSystem,
     x0: ArrayLike,
     v0: ArrayLike,
     t_final: float,
     *,
-    tol: float | None = None,
+    save: SaveAt = DEFAULT_SAVE,
+    precision: Precision = DEFAULT_PRECISION,
     rate: float = 1.0,
     compact_mode: bool | None = None,
-    t_eval: ArrayLike | None = None,
     batch_size: int | None = None,
     chunk_size: int | None = None,
     backend: str = "serial",
@@ -76,17 +79,19 @@ def solve_constrained_ensemble(
         :func:`~manifold.constrained.solve_constrained`.
     t_final
         Final time, finite and nonzero; negative integrates backward.
-    tol
-        heyoka's tolerance in ``(0, 1e-2]``; ``None``: the float64 machine epsilon.
+    save
+        :class:`~manifold.options.SaveAt` ``(t_eval)``: times (1-d, within ``[0, t_final]``, in integration
+        order) at which states are kept, for every trajectory.  No dense output is kept: ``dense=True`` is
+        refused.
+    precision
+        :class:`~manifold.options.Precision` ``(tol=...)``: heyoka's tolerance in ``(0, 1e-2]``; ``None``: the
+        float64 machine epsilon.  The batches run in float64 only: another ``fp_type`` is refused.
     rate
         Baumgarte rate in units of each trajectory's speed scale, ``> 0``.
     compact_mode
         heyoka's compact mode (faster compile, slower steps); ``None``: as
         :func:`~manifold.constrained.solve_constrained` chooses
         (:func:`~manifold.constrained.default_compact_mode`).
-    t_eval
-        Times (1-d, within ``[0, t_final]``, in integration order) at which
-        states are kept, for every trajectory.
     batch_size
         SIMD lanes per integrator, ``>= 1`` and at most :data:`MAX_BATCH_LANES` times
         ``heyoka.recommended_simd_size()``; ``None``: ``heyoka.recommended_simd_size()``, twice that in
@@ -106,12 +111,18 @@ def solve_constrained_ensemble(
         with single :func:`~manifold.constrained.solve_constrained` calls to rounding.
     """
     t_final = check_real("t_final", t_final, nonzero=True)
-    if tol is not None:
-        tol = check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
+    save, precision = check_group("save", save, SaveAt), check_group("precision", precision, Precision)
+    if save.keeps_dense(False):
+        raise TypeError("solve_constrained_ensemble keeps no dense output: ask for states with "
+                        "save=SaveAt(t_eval=...)")
+    if not is_double(precision.fp_type):
+        raise ValueError(f"the SIMD batches integrate in float64, got precision=Precision(fp_type="
+                         f"{precision.fp_type!r})")
+    tol = precision.tol
     rate = check_real("rate", rate, positive=True)
     compact_mode = check_bool("compact_mode", default_compact_mode(system, float) if compact_mode is None
                               else compact_mode)
-    grid = None if t_eval is None else check_time_grid(t_eval, t_final)
+    grid = save.grid(t_final)
     dim = system.ambient_dim
     x0, v0 = real_array("x0", x0), real_array("v0", v0)
     for name, arr in (("x0", x0), ("v0", v0)):

@@ -18,6 +18,7 @@ from linkage.constraints import ChainSystem, HingeConstraints
 from manifold import Precision, SaveAt, StartCheck, solve_chart_exp_ode
 from manifold.carried import solve_carried
 from manifold.constrained import solve_constrained
+from manifold.constrained_batch import solve_constrained_ensemble
 from manifold.lyapunov import lyapunov_spectrum
 from manifold.options import (DEFAULT_START, MOVED_OPTIONS, TANGENT_TOL, check_group, refuse_moved_options,
                               takes_option_groups)
@@ -239,6 +240,25 @@ def test_lyapunov_spectrum_takes_its_tolerance_in_precision():
         lyapunov_spectrum(None, None, None, 1.0, tol=1e-10)
     with pytest.raises(TypeError, match=r"precision must be a manifold.Precision"):
         lyapunov_spectrum(None, None, None, 1.0, precision=1e-10)
+
+
+@pytest.mark.parametrize("name, home", [("t_eval", "save=SaveAt(t_eval=...)"), ("tol", "precision=Precision(tol=...)")])
+def test_the_simd_ensemble_names_the_new_home_of_a_moved_keyword(name, home):
+    with pytest.raises(TypeError, match=re.escape(f"solve_constrained_ensemble() does not take {name}=: {name}= is "
+                                                  f"given as {home}")):
+        solve_constrained_ensemble(None, None, None, 1.0, **{name: None})
+
+
+def test_the_simd_ensemble_refuses_dense_output_and_other_precisions():
+    chain = Chain(4, 2.6)
+    h0, v0 = sample_starts(chain, 2, 0.5, np.random.default_rng(7))
+    X0, V0 = chain.to_point(h0), chain.to_point(v0)
+    with pytest.raises(TypeError, match=r"keeps no dense output: ask for states with save=SaveAt\(t_eval=...\)"):
+        solve_constrained_ensemble(ChainSystem(chain), X0, V0, 1.0, save=SaveAt([0.5], dense=True))
+    with pytest.raises(ValueError, match="the SIMD batches integrate in float64"):
+        solve_constrained_ensemble(ChainSystem(chain), X0, V0, 1.0, precision=Precision("longdouble"))
+    with pytest.raises(TypeError, match="precision must be a manifold.Precision"):
+        solve_constrained_ensemble(ChainSystem(chain), X0, V0, 1.0, precision=1e-10)
 
 
 def test_solve_carried_names_the_new_home_of_a_moved_keyword():
