@@ -29,7 +29,7 @@ import heyoka as hy
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .options import DEFAULT_SAVE, refuse_moved_options
+from .options import DEFAULT_SAVE, PASSED_ON_GROUPS, refuse_moved_options
 from .solution import GeodesicSolution, energy_bound
 
 if TYPE_CHECKING:
@@ -206,6 +206,6 @@ def solve_carried(system: ConstrainedSystem, x0: ArrayLike, v0: ArrayLike, t_fin
     for name in ("save", "dense", "t_eval", "carry"):
         if name in options:
             raise TypeError(f"solve_carried does not take {name}= (the carried values are read from dense output)")
-    refuse_moved_options("solve_carried", options)
+    refuse_moved_options("solve_carried", options, PASSED_ON_GROUPS)
     solution = solve_constrained(system, x0, v0, t_final, carry=terms, save=DEFAULT_SAVE, **options)
     return CarriedSolution(solution, terms, ConstrainedGeometry(system, solution.fp_type))

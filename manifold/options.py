@@ -27,8 +27,9 @@ from .precision import resolve_fp_type
 from .steppers import MAX_TOLERANCE
 from .validation import check_bool, check_real, check_time_grid, real_array
 
-__all__ = ["DEFAULT_PRECISION", "DEFAULT_SAVE", "DEFAULT_START", "MOVED_OPTIONS", "PROJECTED_START", "Precision",
-           "SaveAt", "StartCheck", "TANGENT_TOL", "check_group", "refuse_moved_options", "takes_option_groups"]
+__all__ = ["DEFAULT_PRECISION", "DEFAULT_SAVE", "DEFAULT_START", "MOVED_OPTIONS", "PASSED_ON_GROUPS", "PROJECTED_START",
+           "Precision", "SaveAt", "StartCheck", "TANGENT_TOL", "check_group", "refuse_moved_options",
+           "takes_option_groups"]
 
 G = TypeVar("G")
 
@@ -225,7 +226,9 @@ P = ParamSpec("P")
 R = TypeVar("R")
 
 
-#: The groups that a function passing ``**options`` on to a solver is taken to take: every solver takes them.
+#: The groups whose moved keywords are refused by name in a function that passes ``**options`` on, whether or not
+#: it takes the group itself: the solvers it passes them to do (or refuse them by name); not ``start``, which only
+#: the functions that check a start velocity take.
 PASSED_ON_GROUPS = ("save", "precision")
 
 
