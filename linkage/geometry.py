@@ -147,8 +147,8 @@ def checked_start(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: flo
     save = check_group("save", save, SaveAt)
     if not save.keeps_dense(True):
         raise TypeError("the carried values are read from dense output: save=SaveAt(dense=False) is not taken")
-    checked = start_state(chain, hinges0, velocity0, check_real("T", T, nonzero=True), start)
-    return checked, save.grid(checked.t_final)
+    hinge_start = start_state(chain, hinges0, velocity0, check_real("T", T, nonzero=True), start)
+    return hinge_start, save.grid(hinge_start.t_final)
 
 
 def _solve(start: HingeStart, term: CarriedTerm, grid: NDArray | None, precision: Precision, method: str,
@@ -272,9 +272,9 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
     TransportedVectors
         ``times``, ``hinges``, ``velocities``, ``vectors``; callable at other times.
     """
-    checked, grid = checked_start(chain, hinges0, velocity0, T, save, start, method)
-    rows, single = _tangent_vectors(checked.constraints, checked.x0, vectors0, "vectors0", start)
-    carried, times = _solve(checked, ParallelTransport(rows), grid, precision, method, options)
+    hinge_start, grid = checked_start(chain, hinges0, velocity0, T, save, start, method)
+    rows, single = _tangent_vectors(hinge_start.constraints, hinge_start.x0, vectors0, "vectors0", start)
+    carried, times = _solve(hinge_start, ParallelTransport(rows), grid, precision, method, options)
     return TransportedVectors(chain, carried, times, single)
 
 
