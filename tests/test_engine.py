@@ -28,7 +28,7 @@ from manifold import (
 )
 
 from .conftest import unit_speed_start
-from .sphere_family import StereographicChart, StereographicFamily, great_circle, sphere_metric
+from .sphere_family import StereographicChart, StereographicFamily, great_circle, sphere_metric, sphere_start
 
 
 def _chain_start(chain, a, c):
@@ -37,18 +37,10 @@ def _chain_start(chain, a, c):
     return chain.to_point(h0), chain.to_point(v0)
 
 
-def _sphere_start(seed: int = 0):
-    rng = np.random.default_rng(seed)
-    p0 = rng.normal(size=3)
-    p0 /= np.linalg.norm(p0)
-    v0 = rng.normal(size=3)
-    v0 -= (v0 @ p0) * p0
-    return p0, v0 / np.linalg.norm(v0) * 1.3
-
 
 @pytest.mark.parametrize("stepper, tol", [(TaylorStepper(), 1e-12), (ScipyStepper("DOP853", 1e-12, 1e-12), 1e-9)])
 def test_sphere_geodesics_are_great_circles_through_switches(stepper, tol):
-    p0, v0 = _sphere_start()
+    p0, v0 = sphere_start()
     T = 20.0
     sol = solve_chart_exp_ode(sphere_metric(), p0, v0, T, stepper=stepper)
     assert sol.success and sol.n_switches >= 4  # every half turn passes near a projection pole

@@ -23,7 +23,7 @@ from manifold import ScipyStepper, SolveStatus, TaylorStepper, compiled, solve_c
 from manifold.events import EITHER, FALLING, RISING, SWITCH, WRAP, first_crossing
 from manifold.steppers import DenseStepper, Step, StepperFailure, locate_events
 
-from .sphere_family import great_circle, sphere_metric
+from .sphere_family import great_circle, sphere_metric, sphere_start
 
 EPS = np.finfo(float).eps
 
@@ -123,19 +123,11 @@ def _segment_ends(sol):
     return np.array([float(s.t_end) for s in sol.segments])
 
 
-def _sphere_start():
-    rng = np.random.default_rng(0)
-    p0 = rng.normal(size=3)
-    p0 /= np.linalg.norm(p0)
-    v0 = rng.normal(size=3)
-    v0 -= (v0 @ p0) * p0
-    return p0, v0 / np.linalg.norm(v0) * 1.3
-
 
 @pytest.mark.parametrize("T", [20.0, -20.0])
 def test_sphere_switches_agree_between_the_taylor_and_the_scipy_stepper(T):
     metric = sphere_metric()
-    p0, v0 = _sphere_start()
+    p0, v0 = sphere_start()
     taylor = solve_chart_exp_ode(metric, p0, v0, T)
     scipy_run = solve_chart_exp_ode(metric, p0, v0, T, stepper=ScipyStepper("DOP853", 1e-12, 1e-12))
     charts, times = _switch_log(taylor)
@@ -270,7 +262,7 @@ def _hermite(t0, y0, f0, h, y1, f1):
 @pytest.mark.parametrize("T", [10.0, -10.0])
 def test_a_stepper_that_only_steps_takes_the_same_switches(T):
     metric = sphere_metric()
-    p0, v0 = _sphere_start()
+    p0, v0 = sphere_start()
     taylor = solve_chart_exp_ode(metric, p0, v0, T)
     rk4 = solve_chart_exp_ode(metric, p0, v0, T, stepper=RungeKutta4(2e-3))
     assert rk4.n_switches >= 4 and _switch_log(rk4)[0] == _switch_log(taylor)[0]
@@ -296,7 +288,7 @@ class BreaksDown(RungeKutta4):
 
 def test_a_stepper_that_breaks_down_ends_the_solve_with_its_reason():
     metric = sphere_metric()
-    p0, v0 = _sphere_start()
+    p0, v0 = sphere_start()
     sol = solve_chart_exp_ode(metric, p0, v0, 1.0, stepper=BreaksDown(1e-2), throw=False)
     assert sol.status is SolveStatus.STEPPER_FAILED and "no step from t = 0.03" in sol.message
     assert float(sol.t_reached) == pytest.approx(0.03, abs=1e-15)  # the three steps taken are kept

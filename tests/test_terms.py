@@ -29,7 +29,7 @@ from manifold.terms import ChartGeodesic, Term
 from manifold.transport import ParallelTransport
 
 from .conftest import unit_speed_start
-from .sphere_family import great_circle, sphere_metric
+from .sphere_family import great_circle, sphere_metric, sphere_start
 
 
 class ScaledTime(Term):
@@ -45,14 +45,6 @@ class ScaledTime(Term):
     def events(self, equations, offset):
         return [Event(equations[-1][0] - 1.0, RISING, "stop")]
 
-
-def _unit_sphere_start():
-    rng = np.random.default_rng(0)
-    p0 = rng.normal(size=3)
-    p0 /= np.linalg.norm(p0)
-    v0 = rng.normal(size=3)
-    v0 -= (v0 @ p0) * p0
-    return p0, v0 / np.linalg.norm(v0) * 1.3
 
 
 def _sphere_state():
@@ -144,7 +136,7 @@ def test_a_term_gives_its_parameter_values_and_the_loop_acts_on_its_stop_event(T
     """No stepper of its own: the Taylor stepper asks the term for its parameter at every segment (chart switches
     before the deadline), and the loop ends the solve at its stop event, where the great circle is."""
     metric = sphere_metric()
-    p0, v0 = _unit_sphere_start()
+    p0, v0 = sphere_start()
     deadline = Deadline(at)
     sol = solve_chart_exp_ode(metric, p0, v0, T, stepper=TaylorStepper(terms=(deadline,)))
     assert sol.status is SolveStatus.SUCCESS and sol.message.startswith("stopped at t = ")
@@ -164,7 +156,7 @@ def test_a_term_whose_values_miss_its_declared_parameters_is_refused_by_name():
             return np.zeros(0)
 
     metric = sphere_metric()
-    p0, v0 = _unit_sphere_start()
+    p0, v0 = sphere_start()
     with pytest.raises(ValueError, match=r"declares n_params = 1 but its parameter_values gave 0"):
         solve_chart_exp_ode(metric, p0, v0, 1.0, stepper=TaylorStepper(terms=(Short(0.5),)))
 
