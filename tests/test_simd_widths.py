@@ -22,9 +22,9 @@ from linkage.sampling import sample_starts
 from manifold.constrained_batch import DEFAULT_WIDTHS, MAX_BATCH_LANES
 
 from .conftest import SIMD_WIDTH_VARIABLE
+from .test_ensembles import FAST
 
 CHAIN = Chain(4, 2.6)
-FAST = {"compact_mode": True}  # compiles in seconds: CI starts cold
 WIDTHS = (1, 2, 4, 8)
 
 
