@@ -15,6 +15,7 @@ from fractions import Fraction
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from manifold.constrained import START_ROUNDING_MARGIN
 from manifold.validation import check_real
 
 
@@ -151,6 +152,31 @@ def closure_residual(hinges: ArrayLike, L: float, lengths: ArrayLike = 1.0) -> N
     """
     ls = np.asarray(lengths, dtype=float)
     return np.max(np.abs(np.abs(rod_vectors(hinges, L)) - ls) / ls, axis=-1)
+
+
+def rounding_floors(lengths: ArrayLike) -> NDArray:
+    """Per rod, the relative closure error that rounding the hinges to float64 alone leaves: ``u R / l_k``
+    (``u`` the unit roundoff; every hinge lies within ``R``, the sum of the lengths, of the pin ``0``, so its
+    coordinates round by up to ``u R``, and a rod's length by about that).
+
+    Numerical trap: at most ``u`` for rods of comparable lengths, but a 6e-9 link among unit rods rounds to
+    1.1e-7 of its length, which no closure check below that can pass.
+    """
+    ls = np.asarray(lengths, dtype=float)
+    return np.finfo(float).eps / 2 * float(np.sum(ls)) / ls
+
+
+def closure_tolerances(lengths: ArrayLike, tol: float) -> NDArray:
+    """Per rod, the relative closure error accepted: ``tol``, or :data:`manifold.constrained.START_ROUNDING_MARGIN`
+    times the rod's :func:`rounding_floors` where that is larger (a link much shorter than the chain)."""
+    return np.maximum(tol, START_ROUNDING_MARGIN * rounding_floors(lengths))
+
+
+def closure_excess(hinges: ArrayLike, L: float, lengths: ArrayLike, tol: float) -> NDArray:
+    """``max_k | |e_k| - l_k | / (l_k tol_k)`` (``tol_k``: :func:`closure_tolerances`): at most 1 where a
+    configuration closes as well as asked (NaN for a non-finite one)."""
+    ls = np.asarray(lengths, dtype=float)
+    return np.max(np.abs(np.abs(rod_vectors(hinges, L)) - ls) / (ls * closure_tolerances(ls, tol)), axis=-1)
 
 
 def validate_side_order(order: ArrayLike, n: int, base: int) -> NDArray:

@@ -24,6 +24,7 @@ from manifold.validation import real_array
 from . import suspension_formula as formula
 from manifold.backends import NUMPY
 from .chain_geometry import (
+    closure_excess,
     closure_residual,
     relabel_hinges,
     relabel_matrix,
@@ -36,7 +37,8 @@ from .chain_geometry import (
 )
 from .suspension_symbolic import SuspensionFamily
 
-#: Largest closure residual (max rod-length error) accepted by ``get_parameters``.
+#: Largest closure residual (max rod-length error) accepted by ``get_parameters`` (a rod much shorter than the chain:
+#: its float64 rounding floor, ``chain_geometry.closure_tolerances``).
 CLOSURE_TOLERANCE = 1e-9
 #: Slack beyond ``|phi| = pi/2`` accepted as rounding in ``get_point``.
 LATITUDE_SLACK = 1e-12
@@ -163,10 +165,11 @@ class SuspensionChart(SymbolicChart):
         p = super().check_point(p)
         if not np.all(np.isfinite(p)):
             raise ChartDomainError(f"point must be finite, got {p}")
-        res = closure_residual(to_complex(p), self.L, self.lengths)
-        if np.any(res > CLOSURE_TOLERANCE):
+        h = to_complex(p)
+        if np.any(~(closure_excess(h, self.L, self.lengths, CLOSURE_TOLERANCE) <= 1)):
             raise ChartDomainError(
-                f"configuration does not close: relative rod-length error {np.max(res):.3g} > {CLOSURE_TOLERANCE:g} "
+                f"configuration does not close: relative rod-length error {np.max(closure_residual(h, self.L, self.lengths)):.3g} "
+                f"> {CLOSURE_TOLERANCE:g} (or a short rod's float64 rounding floor, chain_geometry.closure_tolerances) "
                 f"({self!r})"
             )
         return p

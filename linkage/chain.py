@@ -35,15 +35,18 @@ from numpy.typing import ArrayLike, NDArray
 
 from charts import SuspensionAtlas
 from charts.chain_geometry import (
+    closure_excess,
     closure_residual,
     hinges_from_rods,
     rod_vectors,
+    rounding_floors,
     sphere_range,
     to_complex,
     to_real,
     validate_chain,
 )
 from manifold import InducedMetric
+from manifold.constrained import START_ROUNDING_MARGIN
 
 from .diagonal_path import DiagonalPath, diagonal_path
 from .diagonals import DiagonalSpace, diagonals, from_diagonals
@@ -349,13 +352,30 @@ class Chain:
         """``max_k | |e_k| - l_k | / l_k``: how far a configuration is from closing, relative to each rod (0 if it does)."""
         return closure_residual(self.as_hinges(hinges), self.L, self.lengths)
 
+    @cached_property
+    def rounding_floors(self) -> NDArray:
+        """Per rod, the relative closure error that rounding the hinges to float64 alone leaves
+        (:func:`charts.chain_geometry.rounding_floors`: ``u R / l_k``, 1.1e-7 for a 6e-9 link among unit rods)."""
+        return rounding_floors(self.lengths)
+
+    def closure_excess(self, hinges: ArrayLike, tol: float = 1e-9) -> NDArray:
+        """``max_k | |e_k| - l_k | / (l_k tol_k)``, ``tol_k`` the larger of ``tol`` and
+        :data:`manifold.constrained.START_ROUNDING_MARGIN` times the rod's :attr:`rounding_floors`
+        (:func:`charts.chain_geometry.closure_excess`): at most 1 where :meth:`check_configuration` accepts."""
+        return closure_excess(self.as_hinges(hinges), self.L, self.lengths, tol)
+
     def check_configuration(self, hinges: ArrayLike, tol: float = 1e-9) -> NDArray:
-        """Return ``hinges`` as a complex array if it closes to ``tol`` (:meth:`closure_residual`); raise otherwise."""
+        """Return ``hinges`` as a complex array if each rod closes to ``tol`` relative to its length, or to what
+        float64 rounding allows where that is larger (:meth:`closure_tolerances`); raise ``ConfigurationError``
+        otherwise."""
         h = self.as_hinges(hinges)
-        res = closure_residual(h, self.L, self.lengths)
-        if np.any(res > tol):
+        excess = self.closure_excess(h, tol)
+        if np.any(~(excess <= 1)):
+            res = closure_residual(h, self.L, self.lengths)
             raise ConfigurationError(
-                f"configuration does not close: max relative rod-length error {np.max(res):.3g} exceeds tol = {tol:g}"
+                f"configuration does not close: max relative rod-length error {np.max(res):.3g} exceeds tol = {tol:g} "
+                f"(or {START_ROUNDING_MARGIN} times the rod's float64 rounding floor, Chain.rounding_floors, where "
+                "larger)"
             )
         return h
 

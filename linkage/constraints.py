@@ -410,7 +410,7 @@ def start_states(
         energy = 0.5 * np.einsum("ni,ij,nj->n", V0, system.K, V0)
     chain.check_generic()
     residual = system.tangency_residual(X0, V0)
-    ok = (chain.closure_residual(H) <= 1e-9) & np.isfinite(energy)
+    ok = (chain.closure_excess(H) <= 1) & np.isfinite(energy)
     ok &= residual <= system.tangency_allowance(V0, check.tangent_tol)
     for k in np.nonzero(~ok)[0]:
         try:
@@ -487,6 +487,12 @@ class ChainSystem(ConstrainedSystem):
     def length_scale(self) -> float:
         """The mean rod length (1 for unit rods): the Baumgarte rate is speed / length, an angular rate."""
         return float(np.mean(self.chain.lengths))
+
+    @property
+    def rounding_scales(self) -> NDArray:
+        """``2 R / l_k`` unit roundoffs (:attr:`Chain.rounding_floors`: ``c_k`` is twice the relative length error),
+        below the common floor for rods of comparable lengths; a short link's own."""
+        return 2 * self.chain.rounding_floors / (np.finfo(float).eps / 2)
 
     @property
     def metric_matrix(self) -> NDArray:

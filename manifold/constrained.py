@@ -73,8 +73,12 @@ Expr: TypeAlias = hy.expression
 STABILISATIONS = ("baumgarte", "projection", "none")
 #: Largest ambient dimension integrated with unrolled (non-compact) code by default; see ``solve_constrained``.
 UNROLL_MAX_DIM = 8
-#: A start farther than this from ``c = 0`` (``max_k |c_k|``) is refused rather than moved.
+#: A start farther than this from ``c = 0`` (``max_k |c_k|``) is refused rather than moved, unless a constraint's
+#: rounding floor (:meth:`ConstrainedGeometry.floors`) times :data:`START_ROUNDING_MARGIN` is larger.
 START_CONSTRAINT_TOLERANCE = 1e-9
+#: A float64 start is accepted up to this many times each constraint's rounding floor (where that exceeds
+#: :data:`START_CONSTRAINT_TOLERANCE`: a chain's 6e-9 link, whose float64 rounding alone gives ``|c_k|`` ~ 2e-7).
+START_ROUNDING_MARGIN = 100
 #: A constraint residual below this many unit roundoffs is rounding (a rod's ``c_k`` sums several rounded terms: a
 #: correctly rounded configuration showed 5 of them), and the projection leaves the point alone.  Numerical trap:
 #: near a singular configuration (``L`` near ``n``) ``G`` loses rank, and projecting a rounding-level residual moved
@@ -117,6 +121,19 @@ class ConstrainedSystem(ABC):
         damping term and ``s`` times more steps (8885 against 53 at ``s = 1e4``).
         """
         return 1.0
+
+    @property
+    def rounding_scales(self) -> NDArray:
+        """Per constraint, how far rounding a point of ``c = 0`` to the working precision can move ``c_k``, in unit
+        roundoffs: shape ``(m,)``, default ones (constraints written relative, of values near 1).
+
+        Every tolerance on ``c_k`` (the start check, the projection's target, the drift check) is judged against
+        ``max(ROUNDING_RESIDUAL, scale_k)`` unit roundoffs.  Numerical trap: a constraint relative to a length much
+        shorter than the coordinates (a chain's rod of 6e-9 between hinges at distance 6) rounds to
+        ``eps |x| / l_k``, 1e8 times the others' floor; judged by the common floor, such a point could never
+        pass.
+        """
+        return np.ones(self.n_constraints)
 
     @property
     @abstractmethod
@@ -582,6 +599,14 @@ class ConstrainedGeometry:
         self.eps = unit_roundoff(fp_type)
         self.speed_scale = speed_scale(system)
         self.K = as_fp(np.asarray(system.metric_matrix, dtype=float), fp_type)  # float64 entries: exact in fp_type
+        scales = np.maximum(ROUNDING_RESIDUAL, np.asarray(system.rounding_scales, dtype=float))
+        if scales.shape != (self.m,) or not np.all(np.isfinite(scales)):
+            raise ValueError(f"{system!r}.rounding_scales must be {self.m} finite numbers, got {scales!r}")
+        #: each constraint's floor over the common one (ROUNDING_RESIDUAL unit roundoffs), >= 1: drift is judged by it
+        self.weights = scales / ROUNDING_RESIDUAL
+        self.floors = scales * self.eps
+        self.start_tolerances = np.maximum(START_CONSTRAINT_TOLERANCE,
+                                           START_ROUNDING_MARGIN * scales * unit_roundoff(float))
         self.system, self._compiled = system, comp
         self._one_column = np.ascontiguousarray(self.pars[: self.cf.nparams, None])  # the parameters of a single row
         self._max_steps = 3 + int(np.ceil(-np.log2(self.eps) / 50))  # Gauss-Newton steps of the projection, at most
@@ -602,6 +627,14 @@ class ConstrainedGeometry:
         out = self.cf(args, pars=pars)
         m, N = self.m, self.N
         return out[:m].T, out[m : 2 * m].T, out[2 * m : 2 * m + N].T, out[-1]
+
+    def drift(self, c: NDArray) -> NDArray:
+        """``max_k |c_k| / w_k`` over the last axis, ``w_k >= 1`` each constraint's rounding floor over the common one
+        (:attr:`ConstrainedSystem.rounding_scales`): the number every drift check compares with
+        :func:`constraint_bound` (NaN stays NaN, and fails it; no constraints: 0)."""
+        if not c.shape[-1]:
+            return np.zeros(c.shape[:-1])
+        return np.max(np.abs(np.asarray(c, dtype=float)) / self.weights, axis=-1)
 
     def packed(self, alpha: Any) -> NDArray:
         """The integrator's parameters (:meth:`ConstrainedLayout.pack`) with the Baumgarte rate ``alpha``."""
@@ -625,8 +658,9 @@ class ConstrainedGeometry:
         return cf(args, pars=np.ascontiguousarray(np.repeat(self.pars[: cf.nparams, None], x.shape[0], axis=1))).T
 
     def project(self, x: NDArray, v: NDArray) -> tuple[NDArray, NDArray]:
-        """Rows ``(B, N)``: Gauss-Newton ``x -= K^{-1} G^T M^{-1} c(x)`` until ``max_k |c_k| <=``
-        :data:`ROUNDING_RESIDUAL` ``eps``, row by row, then ``v -= K^{-1} G^T M^{-1} G v``.
+        """Rows ``(B, N)``: Gauss-Newton ``x -= K^{-1} G^T M^{-1} c(x)`` until every ``|c_k|`` is within its
+        rounding floor (:data:`ROUNDING_RESIDUAL` ``eps``, or more: :attr:`ConstrainedSystem.rounding_scales`),
+        row by row, then ``v -= K^{-1} G^T M^{-1} G v``.
 
         A row that has converged is left alone while the others iterate, and
         the compiled function evaluates columns independently, so each row
@@ -641,7 +675,7 @@ class ConstrainedGeometry:
         for step in range(self._max_steps):
             if step:
                 c = self(x[active], v[active])[0]
-            moving = ~(np.max(np.abs(c.astype(float)), axis=1) <= ROUNDING_RESIDUAL * self.eps)
+            moving = ~np.all(np.abs(c.astype(float)) <= self.floors, axis=1)
             active, c = active[moving], c[moving]
             if not active.size:
                 break
@@ -658,20 +692,22 @@ class ConstrainedGeometry:
         and ``v0`` K-orthogonally onto ``ker G`` (:meth:`project`), the kinetic
         energy there, and the Baumgarte rate ``alpha = sign(t_final) rate
         sqrt(2 E0 tr(K^-1)) / (N length_scale)`` (:attr:`ConstrainedSystem.length_scale`).
-        Raises ``ValueError`` if ``max_k |c_k(x0)|`` exceeds :data:`START_CONSTRAINT_TOLERANCE` or an energy is not finite,
-        naming the row as ``x0[first_index + k]`` (``x0`` alone if ``first_index`` is ``None``).
+        Raises ``ValueError`` if some ``|c_k(x0)|`` exceeds its :attr:`start_tolerances` (:data:`START_CONSTRAINT_TOLERANCE`,
+        or :data:`START_ROUNDING_MARGIN` times the constraint's float64 rounding floor where that is larger) or an
+        energy is not finite, naming the row as ``x0[first_index + k]`` (``x0`` alone if ``first_index`` is ``None``).
         """
         def name(k: int) -> str:
             return "x0" if first_index is None else f"x0[{first_index + k}]"
 
         x, v = as_fp(x0, self.fp), as_fp(v0, self.fp)  # new arrays: the projection changes them in place
         c, Gv, _, _ = self(x, v)  # the check's c and G v are the projection's first
-        c0 = np.max(np.abs(c.astype(float)), axis=1)
-        bad = ~(c0 <= START_CONSTRAINT_TOLERANCE)
+        c0 = np.abs(c.astype(float))
+        bad = ~np.all(c0 <= self.start_tolerances, axis=1)
         if np.any(bad):
             k = int(np.argmax(bad))
-            raise ValueError(f"{name(k)} is not on the constraint manifold: max_k |c_k(x0)| = {c0[k]:.3g} exceeds "
-                             f"{START_CONSTRAINT_TOLERANCE:g}")
+            j = int(np.argmax(~(c0[k] <= self.start_tolerances)))
+            raise ValueError(f"{name(k)} is not on the constraint manifold: |c_{j}(x0)| = {c0[k, j]:.3g} exceeds "
+                             f"{self.start_tolerances[j]:.3g}")
         x, v = self._projected(x, v, c, Gv)
         E0 = self(x, v)[3]
         E0f = np.array([float(e) for e in E0])
@@ -727,7 +763,7 @@ def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float
     energy_violation
         The energy check's sentence (:func:`manifold.solution.energy_violation`), ``None`` if it passed.
     drift
-        ``max_k |c_k|`` over the states checked (NaN fails).
+        ``max_k |c_k| / w_k`` over the states checked (:meth:`ConstrainedGeometry.drift`; NaN fails).
     n_steps
         Steps taken so far.
     eps
@@ -749,7 +785,8 @@ def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float
     bound = constraint_bound(n_steps, eps)
     if not drift <= bound:
         return SolveStatus.CONSTRAINT_CHECK_FAILED, (
-            f"constraint check failed by t = {t:.6g}: max_k |c_k| = {drift:.3g} exceeds "
+            f"constraint check failed by t = {t:.6g}: max_k |c_k| / w_k = {drift:.3g} (w_k >= 1: each constraint's "
+            f"rounding floor over the common one) exceeds "
             f"1000 sqrt(steps + 1) tol = {bound:.3g}")
     if failure == INTERRUPTED:
         return SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t}"
@@ -786,7 +823,8 @@ def solve_constrained(
     system
         The :class:`ConstrainedSystem`.
     x0, v0
-        Start point (``max_k |c_k(x0)| <= 1e-9``, else ``ValueError``) and
+        Start point (``max_k |c_k(x0)| <= 1e-9``, or within 100 times a constraint's float64 rounding floor
+        where that is larger: :attr:`ConstrainedSystem.rounding_scales`; else ``ValueError``) and
         velocity (shape ``(N,)``).  Both are completed to the working precision:
         ``x0`` projected onto ``c = 0``, ``v0`` K-orthogonally onto ``ker G``
         (so a float64 start is an exact start for a quad-precision run).
@@ -912,7 +950,7 @@ def solve_constrained(
             t, x, v, carried = adv.t, adv.y[:N], adv.y[N : 2 * N], adv.y[2 * N :]
             if reports is not None:
                 reports.segment(t, "ambient coordinates")
-            drift = float(np.max(np.abs(c.astype(float)))) if c.size else 0.0
+            drift = float(np.max(geo.drift(c), initial=0.0))
             status, message = verdict(sol.energy_violation(recorded, eps, "ambient coordinates"), drift,
                                       sol.n_steps, eps, float(t), adv.failure)
             for term, sl in zip(carry, slots):

@@ -185,7 +185,7 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
     checked = np.concatenate([states[:, 1:], ends[:, None]], axis=1)
     c, _, _, E = geo(checked[..., :dim].reshape(-1, dim), checked[..., dim:].reshape(-1, dim))
     deviations = np.abs(E.reshape(n, -1) - E0[:, None]) / E0[:, None]
-    drifts = np.max(np.abs(c), axis=1).reshape(n, -1)
+    drifts = geo.drift(c).reshape(n, -1)
     errors, status, messages = judge_lanes(deviations, drifts, times, t_reached, steps,
                                            taylor_relative_tolerance(tol, float), failure)
     return EnsembleSolution(

@@ -259,7 +259,7 @@ def lyapunov_spectrum(
             c, _, _, Ek = geo(x[None, :], v[None, :])  # checked where it stopped, as a single solve checks
             energies.append(float(Ek[0]))
             energy_times.append(t)
-            drift = max(drift, float(np.max(np.abs(c))))
+            drift = max(drift, float(geo.drift(c)[0]))
             if interrupted or outcome != hy.taylor_outcome.time_limit:
                 failure = INTERRUPTED if interrupted else str(outcome)
                 break
