@@ -19,10 +19,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold.constrained_batch import solve_constrained_ensemble
 from manifold.ensemble import EnsembleSolution, chunk_bounds, default_chunk_size, run_chunks
+from manifold.interrupt import SolveInterrupted
 from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, Precision, SaveAt, StartCheck,
                               check_group, refuse_moved_options)
 from manifold.progress import ProgressArgument
-from manifold.solution import SolveStatus
+from manifold.solution import GeodesicSolution, SolveStatus
 from manifold.validation import check_positive_int
 
 from .chain import Chain
@@ -234,8 +235,14 @@ def solve_motion_chunk(chain: Chain, X0: NDArray, V0: NDArray, t_final: float, g
     """One chunk of single :func:`~linkage.motion.free_motion` solves (starts checked by :func:`free_motions`)."""
     from .motion import free_motion
 
-    # progress=False: the ensemble reports per chunk; single solves inside it stay silent
     save = SaveAt(t_eval=grid, dense=False)
-    solutions = [free_motion(chain, chain.from_point(x), chain.from_point(v), t_final, method=method, save=save,
-                             throw=False, progress=False, **options).solution for x, v in zip(X0, V0)]
-    return EnsembleSolution.from_solutions(solutions, t_final, grid)
+
+    def solve(x: NDArray, v: NDArray) -> GeodesicSolution:
+        # progress=False: the ensemble reports per chunk; single solves inside it stay silent
+        try:
+            return free_motion(chain, chain.from_point(x), chain.from_point(v), t_final, method=method, save=save,
+                               throw=False, progress=False, **options).solution
+        except SolveInterrupted as e:  # Ctrl-C: the partial result, and the ensemble raises it (map_chunks)
+            return e.result
+
+    return EnsembleSolution.from_solutions([solve(x, v) for x, v in zip(X0, V0)], t_final, grid)

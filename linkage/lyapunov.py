@@ -13,6 +13,7 @@ from typing import Any
 from numpy.typing import ArrayLike, NDArray
 
 from manifold.ensemble import chunk_bounds, default_chunk_size, map_chunks
+from manifold.interrupt import SolveInterrupted
 from manifold.lyapunov import LyapunovResult, float64_precision, lyapunov_spectrum
 from manifold.options import DEFAULT_PRECISION, DEFAULT_START, Precision, StartCheck, takes_option_groups
 from manifold.progress import ProgressArgument
@@ -71,7 +72,7 @@ def lyapunov_exponent(
         :class:`manifold.StartCheck` ``(tangent_tol, project_velocity)``: the start check of
         :func:`~linkage.motion.free_motion`.
     **kwargs
-        ``rate``, ``compact_mode``, ``seed``, ``throw`` of :func:`manifold.lyapunov.lyapunov_spectrum`.
+        ``rate``, ``compact_mode``, ``seed``, ``throw``, ``budget`` of :func:`manifold.lyapunov.lyapunov_spectrum`.
 
     Returns
     -------
@@ -104,7 +105,9 @@ def lyapunov_exponents(
 
     Each start is its own estimate; a trajectory that fails its checks is
     returned with its ``status`` (``throw=False``) instead of stopping the
-    others.  ``precision``, ``start`` and ``kwargs`` are those of :func:`lyapunov_exponent`.
+    others.  ``precision``, ``start`` and ``kwargs`` are those of :func:`lyapunov_exponent`.  Ctrl-C (serial and
+    threads backends) stops every estimate within about 0.1 s and raises :class:`~manifold.interrupt.SolveInterrupted`
+    carrying the list of them as far as they got (status ``INTERRUPTED``).
     """
     options = {"precision": float64_precision(precision), "throw": False, **kwargs}  # refused here, not per chunk
     _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, start)
@@ -113,11 +116,21 @@ def lyapunov_exponents(
     bounds = chunk_bounds(len(X0), size)
     chunks = [functools.partial(lyapunov_chunk, chain, X0[i:j], V0[i:j], t_final, options)
               for i, j in bounds]
-    parts = map_chunks(chunks, [j - i for i, j in bounds], backend=backend, client=client, progress=progress)
+    try:
+        parts = map_chunks(chunks, [j - i for i, j in bounds], backend=backend, client=client, progress=progress)
+    except SolveInterrupted as e:  # Ctrl-C: every estimate as far as it got
+        raise SolveInterrupted(str(e), [r for part in e.result for r in part]) from None
     return [r for part in parts for r in part]
 
 
 def lyapunov_chunk(chain: Chain, X0: NDArray, V0: NDArray, t_final: float, options: dict) -> list[LyapunovResult]:
     """One chunk of :func:`lyapunov_exponents`: real interleaved starts (checked there), one estimate each."""
     system = ChainSystem(chain)
-    return [lyapunov_spectrum(system, x, v, t_final, **options) for x, v in zip(X0, V0)]
+
+    def estimate(x: NDArray, v: NDArray) -> LyapunovResult:
+        try:
+            return lyapunov_spectrum(system, x, v, t_final, **options)
+        except SolveInterrupted as e:  # Ctrl-C: the estimate so far, and the ensemble raises it (map_chunks)
+            return e.result
+
+    return [estimate(x, v) for x, v in zip(X0, V0)]

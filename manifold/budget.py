@@ -107,7 +107,8 @@ def spent_message(account: _Account, t: float, t_final: float) -> str:
     need = f"about {account.steps * scale:.3g} steps"
     if account.per_step:
         need += f" and {account.dense_bytes * scale / 2**30:.3g} GiB of dense output ({account.per_step} bytes a step)"
+    dense = (", or save=SaveAt(dense=False) (and no t_eval, whose grid is read from a segment's dense output) to keep "
+             "only the end state") if account.per_step else ""  # a solve that kept no dense output has no use for the hint
     return (f"the budget of {account.budget.steps:.3g} steps and {account.budget.dense_bytes / 2**30:.3g} GiB of "
             f"dense output is spent at t = {t:.6g}: reaching t_final = {t_final:g} would take {need}; pass "
-            "budget=manifold.budget.Budget(...) to allow it, or save=SaveAt(dense=False) (and no t_eval, whose grid "
-            "is read from a segment's dense output) to keep only the end state")
+            f"budget=manifold.budget.Budget(...) to allow it{dense}")

@@ -15,7 +15,10 @@ single solve is judged (:func:`~manifold.constrained.verdict`): energy and
 ``max_k |c_k|`` on the grid and at the end.  A lane whose state turns
 non-finite stops heyoka's batch after the step; its batch is then run again
 without it, so it does not disturb the others.  The chunks of the ensemble run
-on :func:`manifold.ensemble.run_chunks`.
+on :func:`manifold.ensemble.run_chunks`.  Ctrl-C stops the batch after its
+current step (a step callback reads :func:`manifold.interrupt.interruptible`'s
+flag); its trajectories, and those of batches not yet run (at their start),
+are returned with status ``INTERRUPTED``.
 """
 
 from __future__ import annotations
@@ -30,6 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from .constrained import (ConstrainedGeometry, ConstrainedSystem, compiled_constrained, constraint_bound,
                           default_compact_mode, verdict)
 from .ensemble import EnsembleSolution, chunk_bounds, default_chunk_size, run_chunks
+from .interrupt import INTERRUPTED, Listener, interruptible
 from .options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
 from .precision import is_double
 from .progress import ProgressArgument
@@ -177,10 +181,15 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
     steps = np.zeros(n, dtype=int)
     t_reached = np.zeros(n)
     failure: list[str | None] = [None] * n
-    with comp.batch_integrator(batch_size, tol, compact_mode) as ta:
+    with comp.batch_integrator(batch_size, tol, compact_mode) as ta, interruptible() as pressed:
         for i in range(0, n, batch_size):
             lanes = list(range(i, min(i + batch_size, n)))
-            _run_batch(ta, lanes, X, V, pars, times, states, ends, steps, t_reached, failure)
+            if pressed():  # not started: held at the start, which passes its checks
+                states[lanes, 0] = ends[lanes] = np.concatenate([X[lanes], V[lanes]], axis=1).astype(float)
+                for k in lanes:
+                    failure[k] = INTERRUPTED
+                continue
+            _run_batch(ta, lanes, X, V, pars, times, states, ends, steps, t_reached, failure, pressed)
     # checked as a single solve checks: the recorded states after the start (grid times reached, then the end)
     checked = np.concatenate([states[:, 1:], ends[:, None]], axis=1)
     c, _, _, E = geo(checked[..., :dim].reshape(-1, dim), checked[..., dim:].reshape(-1, dim))
@@ -242,7 +251,8 @@ def judge_lanes(deviations: NDArray, drifts: NDArray, times: NDArray, t_reached:
 
 
 def _run_batch(ta: Any, lanes: list[int], X: NDArray, V: NDArray, pars: NDArray, times: NDArray, states: NDArray,
-               ends: NDArray, steps: NDArray, t_reached: NDArray, failure: list[str | None]) -> None:
+               ends: NDArray, steps: NDArray, t_reached: NDArray, failure: list[str | None],
+               pressed: Listener) -> None:
     """Integrate the trajectories ``lanes`` on the batch integrator ``ta``, filling their rows of the outputs.
 
     Unused lanes (a short last batch) carry a copy of a live trajectory, whose
@@ -252,15 +262,19 @@ def _run_batch(ta: Any, lanes: list[int], X: NDArray, V: NDArray, pars: NDArray,
     failed ones (the steps of a lane do not depend on the others).  A lane
     counts as done only at ``t_final``: heyoka reports ``time_limit`` for
     lanes held at the start by a neighbour that failed in its first step.
+    After a Ctrl-C (``pressed``: a step callback stops the batch after its step) every lane not done is
+    interrupted where it stopped.
     """
     B = ta.batch_size
     live = list(lanes)
+    callback = (lambda ta: not pressed()) if pressed.live else None  # a Python call a step: only if it can matter
     while live:
         fill = live + [live[0]] * (B - len(live))
         ta.set_time(0.0)
         ta.state[:] = np.concatenate([X[fill].T, V[fill].T])
         ta.pars[:] = pars[: len(ta.pars), fill]
-        _, out = ta.propagate_grid(np.ascontiguousarray(np.repeat(times[:, None], B, axis=1)))
+        _, out = ta.propagate_grid(np.ascontiguousarray(np.repeat(times[:, None], B, axis=1)), callback=callback)
+        interrupted = pressed()
         m, results = len(live), ta.propagate_res[: len(live)]  # a new list at each read: read once
         outcomes = [res[0] for res in results]
         steps[live] = [res[3] for res in results]
@@ -271,8 +285,8 @@ def _run_batch(ta: Any, lanes: list[int], X: NDArray, V: NDArray, pars: NDArray,
         for outcome, k in zip(outcomes, live):
             if outcome == hy.taylor_outcome.time_limit and t_reached[k] == times[-1]:
                 continue
-            if outcome.name.startswith("err"):
-                failure[k] = str(outcome)
+            if outcome.name.startswith("err") or interrupted:
+                failure[k] = str(outcome) if outcome.name.startswith("err") else INTERRUPTED
                 states[k, ~(np.abs(times) <= abs(t_reached[k]))] = np.nan  # heyoka never got there
             else:
                 rerun.append(k)

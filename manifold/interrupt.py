@@ -12,6 +12,16 @@ Chunks change no digit: a Taylor step depends only on the state it starts from,
 and events and cooldowns live in the integrator.  The solvers then stop with
 what they computed and raise :class:`SolveInterrupted`, a ``KeyboardInterrupt``
 that carries it.
+
+Ensembles (:func:`manifold.ensemble.map_chunks`) hold a block open in the main
+thread while worker threads run the chunks; a block opened in a worker thread
+then reads the main thread's flag, so one Ctrl-C stops every worker's solve,
+and each chunk returns what it computed.  SIMD batches
+(:mod:`manifold.constrained_batch`) read the flag in a step callback of
+heyoka's ``propagate_grid``.  Not interruptible: a compile (LLVM runs in C++
+to its end: seconds for a large system, once; heyoka caches the result on
+disk) and a Dask cluster's workers (separate processes: Ctrl-C stops the
+client's wait as usual, without partial results).
 """
 
 from __future__ import annotations
@@ -27,7 +37,8 @@ import heyoka as hy
 
 from .solution import SolveStatus
 
-__all__ = ["BUDGET", "CHUNK_SECONDS", "INTERRUPTED", "SolveInterrupted", "interruptible", "propagate_until", "settled"]
+__all__ = ["BUDGET", "CHUNK_SECONDS", "INTERRUPTED", "Listener", "SolveInterrupted", "interruptible", "propagate_until",
+           "settled"]
 
 #: Wall time a chunk of steps is sized to take: how long a Ctrl-C waits at most, about.
 CHUNK_SECONDS = 0.1
@@ -61,22 +72,34 @@ def _on_interrupt(signum: int, frame: Any) -> None:
     _STATE["pressed"] = True
 
 
-@contextmanager
-def interruptible() -> Iterator[Callable[[], bool]]:
-    """For the block: Ctrl-C sets a flag instead of raising, and the block gets the function that reads it.
+class Listener:
+    """What an :func:`interruptible` block gets: called, whether Ctrl-C was pressed; ``live``, whether a Ctrl-C can
+    reach it at all (a solver passes heyoka a step callback only then: it costs ~0.25 us a step)."""
 
-    Only in the main thread and only over Python's default SIGINT handler (any other handler is left alone, and a
-    block in another thread reads ``False``); nested blocks share the outermost one's flag, and the default
-    handler is back when it ends.
+    def __init__(self, live: bool) -> None:
+        self.live = live
+
+    def __call__(self) -> bool:
+        return self.live and _STATE["depth"] > 0 and bool(_STATE["pressed"])
+
+
+@contextmanager
+def interruptible() -> Iterator[Listener]:
+    """For the block: Ctrl-C sets a flag instead of raising, and the block gets the :class:`Listener` that reads it.
+
+    The flag's handler goes in only in the main thread and only over Python's default SIGINT handler (any other
+    handler is left alone, and the block reads ``False``); nested blocks share the outermost one's flag, and the
+    default handler is back when it ends.  A block in another thread reads the main thread's flag while the main
+    thread is inside a block (an ensemble waiting for its workers), else ``False``.
     """
-    install = (threading.current_thread() is threading.main_thread()
-               and (_STATE["depth"] > 0 or signal.getsignal(signal.SIGINT) is signal.default_int_handler))
+    main = threading.current_thread() is threading.main_thread()
+    install = main and (_STATE["depth"] > 0 or signal.getsignal(signal.SIGINT) is signal.default_int_handler)
     if install:
         if _STATE["depth"] == 0:
             _STATE["pressed"], _STATE["previous"] = False, signal.signal(signal.SIGINT, _on_interrupt)
         _STATE["depth"] += 1
     try:
-        yield (lambda: bool(_STATE["pressed"])) if install else (lambda: False)
+        yield Listener(install or (not main and _STATE["depth"] > 0))
     finally:
         if install:
             _STATE["depth"] -= 1

@@ -1,5 +1,5 @@
-"""Ctrl-C stops a long solve within a fraction of a second, with its partial result, and chunked propagation
-changes no digit.
+"""Ctrl-C stops a long solve or ensemble within a fraction of a second, with its partial result, and chunked
+propagation changes no digit.
 
 The interrupt is a real SIGINT sent to this process from a timer thread, during solves that would take minutes
 (T = 1e7); each solve is compiled first, so the interrupt lands in the integration.
@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 
 from linkage import Chain
+from linkage.ensemble import free_motions
+from linkage.lyapunov import lyapunov_exponents
 from linkage.motion import free_motion, lyapunov_exponent
 from linkage.sampling import sample_starts
 from manifold import SaveAt, SolveStatus
@@ -94,3 +96,62 @@ def test_a_ctrl_c_is_not_swallowed_by_a_failure_of_the_same_segment(monkeypatch,
     with pytest.raises(SolveInterrupted, match="planted"):
         free_motion(CHAIN, H[0], V[0], 5.0, method=method, throw=False)
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+H4, V4 = sample_starts(CHAIN, 6, 0.5, np.random.default_rng(1))
+ENSEMBLES = {
+    # SIMD batches (float64 hinges, Baumgarte): a step callback of propagate_grid reads the flag
+    "SIMD batches, serial": lambda T: free_motions(CHAIN, H4, V4, T, method="hinges", chunk_size=1),
+    "SIMD batches, threads": lambda T: free_motions(CHAIN, H4, V4, T, method="hinges", backend="threads",
+                                                    chunk_size=1),
+    # single solves in worker threads: they read the main thread's flag
+    "single solves, threads": lambda T: free_motions(CHAIN, H4, V4, T, method="charts", backend="threads",
+                                                     chunk_size=2),
+}
+
+
+@pytest.mark.parametrize("name", list(ENSEMBLES))
+def test_ctrl_c_stops_an_ensemble_with_its_partial_results(name):
+    run = ENSEMBLES[name]
+    run(1.0)  # compiled before the clock starts
+    threading.Thread(target=_press_ctrl_c_once_stepping, daemon=True).start()
+    with pytest.raises(SolveInterrupted) as info:
+        run(1e7)
+    ensemble = info.value.result
+    assert len(ensemble) == len(H4) and "KeyboardInterrupt" in str(info.value)
+    assert all(s is SolveStatus.INTERRUPTED for s in ensemble.status)
+    reached = ensemble.t_reached
+    assert np.all((reached >= 0) & (reached < 1e7)) and np.any(reached > 0)
+    # what was computed is sound: energy, and the end states close
+    assert np.all(ensemble.relative_energy_errors <= 1e-12)
+    ends = CHAIN.from_point(ensemble.end_points)
+    assert np.all(CHAIN.closure_residual(ends) <= 1e-12)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_ctrl_c_stops_lyapunov_estimates_on_threads():
+    lyapunov_exponents(CHAIN, H4[:2], V4[:2], 1.0, backend="threads", chunk_size=1)  # compiled first
+    threading.Thread(target=_press_ctrl_c_once_stepping, daemon=True).start()
+    with pytest.raises(SolveInterrupted) as info:
+        # 1e9 renormalisations planned: their end times were once one array of 8 GB
+        lyapunov_exponents(CHAIN, H4[:2], V4[:2], 1e7, backend="threads", chunk_size=1, interval=0.01)
+    results = info.value.result
+    assert len(results) == 2 and all(r.status is SolveStatus.INTERRUPTED for r in results)
+    assert sum(r.n_steps for r in results) > 0
+    for r in results:  # each estimate as far as it got: its renormalisations, finite
+        assert len(r.history) == len(r.times) and np.all((r.times > 0) & (r.times < 1e7))
+        assert np.all(np.isfinite(r.history)) and r.relative_energy_error <= 1e-12
+
+
+def test_a_solve_in_a_worker_thread_without_an_ensemble_is_not_interrupted():
+    """A worker thread's solve reads the main thread's flag only while an ensemble holds it: here nothing does,
+    and a Ctrl-C pressed earlier (a stale flag) must not stop it."""
+    with interrupt.interruptible() as pressed:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)
+        assert pressed()
+    out = []
+    worker = threading.Thread(target=lambda: out.append(RUNS["hinges"](5.0)))
+    worker.start()
+    worker.join()
+    assert out and out[0].success

@@ -3,6 +3,8 @@ and equal to the separation rate of two nearby trajectories integrated on their 
 
 from __future__ import annotations
 
+import re
+
 import heyoka as hy
 import numpy as np
 import pytest
@@ -10,6 +12,9 @@ import pytest
 from linkage import Chain
 from linkage.constraints import ChainSystem
 from linkage.motion import free_motion, lyapunov_exponent, lyapunov_exponents
+from linkage.sampling import sample_starts
+from manifold import SolveStatus
+from manifold.budget import Budget
 from manifold.constrained import ConstrainedSystem, compiled_constrained
 from manifold import SaveAt
 from manifold.lyapunov import LyapunovError, lyapunov_spectrum
@@ -190,3 +195,35 @@ def test_a_failed_check_raises_unless_asked_not_to():
     assert not info.value.result.success
     r = lyapunov_exponent(chain, h, 1e150 * v, 10.0, throw=False)
     assert not r.success and np.isnan(r.exponent)
+
+
+def test_an_estimate_stops_at_its_budget_and_says_so():
+    """Spent, the estimate stops with what it computed and a message naming the budget and the need."""
+    chain = Chain(4, 2.6)
+    h, v = sample_starts(chain, 1, 0.5, np.random.default_rng(3))
+    r = lyapunov_exponent(chain, h[0], v[0], 1e6, budget=Budget(steps=300), throw=False)
+    assert r.status is SolveStatus.BUDGET_EXCEEDED and r.n_steps == 300
+    assert re.search(r"the budget of 300 steps .* reaching t_final = 1e\+06 would take about", r.message)
+    assert "dense=False" not in r.message  # an estimate keeps no dense output: no such hint
+    assert 0 < r.times[-1] < 1e6 and np.all(np.isfinite(r.exponents))
+    with pytest.raises(LyapunovError, match="the budget of 300 steps"):
+        lyapunov_exponent(chain, h[0], v[0], 1e6, budget=Budget(steps=300))
+
+
+def test_a_failed_check_ends_the_estimate_at_that_renormalisation(monkeypatch):
+    """A check that fails stops the run at the renormalisation where it failed, not at t_final (a run near the
+    stretched chain failed its energy check at t = 1 and went on for minutes)."""
+    from manifold import lyapunov as module
+
+    calls = []
+
+    def failing(deviations, times, n_steps, tol, where):
+        calls.append(times[-1])
+        return "energy check failed (planted)"
+
+    chain = Chain(4, 2.6)
+    h, v = sample_starts(chain, 1, 0.5, np.random.default_rng(3))
+    monkeypatch.setattr(module, "energy_violation", failing)
+    r = lyapunov_exponent(chain, h[0], v[0], 1e6, throw=False)
+    assert r.status is SolveStatus.ENERGY_CHECK_FAILED and "planted" in r.message
+    assert calls[0] == pytest.approx(1.0) and len(r.times) == 0  # one interval, then the verdict
