@@ -188,3 +188,45 @@ def test_a_chain_without_charts_is_drawn_without_them(tmp_path):
         sphere_coordinates(m, [0.0])
     with pytest.raises(ValueError, match="has none"):
         draw_sphere_path(Figure().add_subplot(projection="3d"), m)
+
+
+def _segment_distance(q: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance of the pixel ``q`` (2,) to the segments ``a[i] -> b[i]`` (pixels, ``(m, 2)``)."""
+    d = b - a
+    s = np.clip(np.sum((q - a) * d, axis=1) / np.maximum(np.sum(d * d, axis=1), 1e-12), 0.0, 1.0)
+    return np.linalg.norm(a + s[:, None] * d - q, axis=1)
+
+
+def test_animated_gif_frames_show_the_chain_at_their_times(motion, tmp_path):
+    """Each frame of the GIF shows the chain at its own time: its hinges in the colour of the active chart, and
+    where another frame's hinges lie away from this frame's rods, only background (read from the file's pixels)."""
+    from matplotlib.colors import to_rgb
+
+    times = np.array([0.0, 7.3, 19.1, 29.5])
+    fig = Figure(figsize=(5.5, 4.8))
+    path = animate(motion, tmp_path / "m.gif", times=times, fps=5, dpi=60, sphere=False, fig=fig)
+    to_pixels = fig.axes[0].transData.transform  # the figure animate drew on, at its dpi: plane -> pixels
+    height = fig.bbox.height
+    chains = []
+    for t in times:  # the polyline 0, p_1, ..., p_{n-1}, L, as image pixels (rows from the top)
+        z = np.concatenate([[0.0], motion(t)[0], [motion.chain.L]])
+        xy = to_pixels(np.column_stack([z.real, z.imag]))
+        chains.append(np.column_stack([xy[:, 0], height - xy[:, 1]]))
+    with Image.open(path) as gif:
+        assert gif.n_frames == len(times)
+        frames = []
+        for k in range(len(times)):
+            gif.seek(k)
+            frames.append(np.asarray(gif.convert("RGB"), dtype=float))
+    assert frames[0].shape[:2] == (round(height), round(fig.bbox.width))
+    checked_background = 0
+    for k, (t, image) in enumerate(zip(times, frames)):
+        colour = 255 * np.array(to_rgb(f"C{motion.solution.parameters(t)[0]}"))
+        for x, y in chains[k][1:-1]:  # the hinges: dots of the chart's colour
+            assert np.linalg.norm(image[int(round(y)), int(round(x))] - colour) < 60, (k, x, y)
+        for j in range(len(times)):  # other frames' hinges, 8 pixels or more from this frame's rods: background
+            for q in chains[j][1:-1]:
+                if np.min(_segment_distance(q, chains[k][:-1], chains[k][1:])) >= 8:
+                    assert np.all(image[int(round(q[1])), int(round(q[0]))] > 230), (k, j, q)
+                    checked_background += 1
+    assert checked_background >= 10  # the frames differ where it shows
