@@ -1,0 +1,288 @@
+"""Fuzz the library by families: is a wrong answer ever returned as a success, does anything hang, how much memory?
+
+Run ``python -m benchmarks.reliability_fuzz [--count 20000] [--seed 0] [--hang 60]``.  Cases are drawn from
+families in fixed shares of ``--count`` (the cheap chart layer most, solves fewer); each is judged by numbers
+recomputed here from what the library returned, never by its own verdict:
+
+* ``chart``: a random chain with an atlas (n = 3..8, ``L`` anywhere in ``(n - 2, n)``, or lengths that make
+  ``L`` dominant) and random chart parameters: ``get_point`` then ``get_parameters`` of the best chart gives
+  the point back (1e-10);
+* ``hinges``, ``charts``: ``free_motion`` by each method from a chart start, T in 0.1..3, unit or spread hinge
+  masses; a success must conserve the energy recomputed from its end velocity (1e-9) and close (1e-9 per rod,
+  or its rounding floor);
+* ``long``: the hinge method to T = 20..50 (the same checks);
+* ``bad input``: a valid call with one argument spoiled (NaN, inf, negative, zero, wrong shape, a string, a
+  bool): it must raise ``ValueError`` or ``TypeError`` (a ``ConfigurationError`` is one), never return;
+* ``any lengths``: random lengths (one of them possibly 1e-9..1e-6), configurations from
+  ``DiagonalSpace.sample``, the hinge method to T = 1e-3..0.1 from a velocity projected onto the tangent space:
+  the start must be accepted, and a success checked as above;
+* ``ensemble``: ``free_motions`` of 3 starts (SIMD batches) against single solves (1e-9);
+* ``curvature``: ``sectional_curvature(p, u, v)`` equals ``(p, v, u)`` and is finite;
+* ``lyapunov``: ``lyapunov_exponent`` to T = 5 (k = 2): a success has a finite history and energy error 1e-9;
+* ``precision``: the hinge method in long double to T = 1, against float64 (1e-9) on success.
+
+A case is stopped (``SLOW``) if it runs longer than ``--hang`` seconds (a timer sends Ctrl-C, which the solvers
+honour): a run the budget would still allow, or a hang.  Prints per family: cases, successes, honest failures
+(a status, or a ``ValueError``/``TypeError`` where the input is bad), refusals of valid input, wrong answers
+returned as success, other exceptions, slow runs; and the peak RSS.  ``--count`` scales :data:`SHARES`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import os
+import resource
+import signal
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from linkage import Chain
+from linkage.constraints import HingeConstraints
+from linkage.ensemble import free_motions
+from linkage.motion import free_motion, lyapunov_exponent
+
+from .starts import chart_start
+
+#: Cases per family at ``--count 20000`` (scaled with it), cheapest first: the families' costs differ by 1000x.
+SHARES = {"chart": 13290, "bad input": 5000, "ensemble": 80, "hinges": 500, "any lengths": 400, "curvature": 300,
+          "charts": 250, "precision": 120, "lyapunov": 40, "long": 20}
+#: Cases drawn on one chain (its atlas and compiled functions built once) in the chart and curvature families.
+PER_CHAIN = 20
+
+
+class Wrong(Exception):
+    """A success whose recomputed numbers disagree: the thing this fuzz looks for."""
+
+
+def random_chain(rng: np.random.Generator, atlas: bool = True, spread: bool | None = None) -> Chain:
+    n = int(rng.integers(3, 9))
+    masses = 10.0 ** rng.uniform(-2, 2, n - 1) if (rng.random() < 0.4 if spread is None else spread) else 1.0
+    if rng.random() < 0.7:
+        gap = 10.0 ** rng.uniform(-9, np.log10(1.999))  # anywhere, up to 1e-9 of either end
+        return Chain(n, n - 2 + gap if rng.random() < 0.5 else n - gap, hinge_masses=masses)
+    lengths = rng.uniform(0.3, 2.0, n)
+    R, mu = lengths.sum(), lengths.min()
+    return Chain(lengths, R - 2 * mu * rng.uniform(0.01, 0.99), hinge_masses=masses)  # L dominant: a sphere
+
+
+def solved_check(chain: Chain, motion: Any, v0: np.ndarray) -> None:
+    """Energy and closure recomputed at the end of a successful motion."""
+    p, v = motion.solution.end_state()
+    h, w = chain.from_point(np.asarray(p, dtype=float)), chain.from_point(np.asarray(v, dtype=float))
+    E0, E = chain.kinetic_energy(v0), chain.kinetic_energy(w)
+    if not abs(E - E0) <= 1e-9 * E0:
+        raise Wrong(f"energy {E} against {E0}: {abs(E - E0) / E0:.2g}")
+    if not chain.closure_excess(h) <= 1:
+        raise Wrong(f"closure {chain.closure_residual(h):.2g}")
+
+
+_CHAINS: dict[str, Chain] = {}
+
+
+def shared_chain(family: str, k: int, rng: np.random.Generator) -> Chain:
+    """A new chain (with an atlas, ``n >= 4`` for curvature) every :data:`PER_CHAIN` cases of ``family``."""
+    if k % PER_CHAIN == 0 or family not in _CHAINS:
+        chain = random_chain(rng, spread=False)
+        while family == "curvature" and chain.n < 4:
+            chain = random_chain(rng, spread=False)
+        _CHAINS[family] = chain
+    return _CHAINS[family]
+
+
+def case_chart(rng: np.random.Generator, k: int) -> bool:
+    chain = shared_chain("chart", k, rng)
+    atlas = chain.atlas()
+    i = int(rng.integers(len(atlas.charts)))
+    a = np.concatenate([rng.uniform(-np.pi / 2, np.pi / 2, chain.dim - 1), rng.uniform(-np.pi, np.pi, 1)])
+    p = atlas.get_point(i, a)
+    j = atlas.get_chart_index(p)
+    q = atlas.get_point(j, atlas.get_parameters(j, p))
+    if not np.max(np.abs(q - p)) <= 1e-10:
+        raise Wrong(f"round trip off by {np.max(np.abs(q - p)):.2g} ({chain!r}, chart {i} -> {j})")
+    return True
+
+
+def case_motion(rng: np.random.Generator, method: str, T: float, **options: Any) -> bool:
+    chain = random_chain(rng)
+    h0, v0 = chart_start(chain, rng, latitude=1.4)
+    motion = free_motion(chain, h0, v0, T, method=method, throw=False, dense=False, **options)
+    if motion.success:
+        solved_check(chain, motion, v0)
+    return motion.success
+
+
+SPOILED = [np.nan, np.inf, -np.inf, 0.0, "1", True, np.zeros(7), np.array([]), 1j, None, [1.0, 2.0]]
+
+
+def case_bad_input(rng: np.random.Generator) -> bool:
+    """A valid call with one argument spoiled: it must raise ``ValueError`` or ``TypeError``."""
+    chain = Chain(4, 2.6)
+    h0, v0 = chart_start(chain, rng)
+    args: dict[str, Any] = {"hinges0": h0, "velocity0": v0, "t_final": 1.0, "method": "hinges", "tol": 1e-14}
+    name = str(rng.choice(list(args)))
+    if name in ("hinges0", "velocity0") and rng.random() < 0.3:
+        value: Any = args[name] * (1 + 1e-3 * rng.standard_normal(h0.shape))  # off the rods / not tangent
+    elif name == "tol" and rng.random() < 0.3:
+        value = float(rng.choice([-1e-14, 0.5, 1e3]))
+    else:
+        value = SPOILED[int(rng.integers(len(SPOILED)))]
+        if name == "tol" and value is None:  # None is tol's default: not a spoiled value
+            value = np.nan
+    args[name] = value
+    try:
+        free_motion(chain, **args, throw=False, dense=False)
+    except (ValueError, TypeError):
+        return False
+    raise Wrong(f"accepted {name} = {value!r}")
+
+
+def case_any_lengths(rng: np.random.Generator) -> bool:
+    n = int(rng.integers(4, 9))
+    lengths = rng.uniform(0.3, 2.0, n)
+    if rng.random() < 0.5:
+        lengths[rng.integers(n)] = 10.0 ** rng.uniform(-9, -6)
+    L = lengths.sum() * rng.uniform(0.1, 0.95)
+    try:
+        chain = Chain(lengths, L)
+        chain.check_generic()
+        hinges = chain.diagonal_space().sample(1, rng).hinges
+    except ValueError:
+        return False  # an empty or singular configuration space, refused by name
+    x = chain.to_point(hinges[0])
+    w = HingeConstraints(chain).project_velocity(x, rng.standard_normal(x.size))
+    v0 = chain.from_point(w / np.sqrt(2 * chain.kinetic_energy(chain.from_point(w))))
+    motion = free_motion(chain, hinges[0], v0, 10.0 ** rng.uniform(-4, -2), method="hinges", throw=False,
+                         dense=False)  # a refused start raises: counted as an exception
+    if motion.success:
+        solved_check(chain, motion, v0)
+    return motion.success
+
+
+def case_ensemble(rng: np.random.Generator) -> bool:
+    chain = random_chain(rng, spread=False)
+    starts = [chart_start(chain, rng, latitude=1.4) for _ in range(3)]
+    H, V = np.array([h for h, _ in starts]), np.array([v for _, v in starts])
+    T = float(rng.uniform(0.5, 3))
+    ens = free_motions(chain, H, V, T, method="hinges")
+    for k in range(3):
+        one = free_motion(chain, H[k], V[k], T, method="hinges", throw=False, dense=False)
+        if ens.success[k] and one.success:
+            d = np.max(np.abs(ens.end_hinges[k] - chain.from_point(one.solution.end_state()[0].astype(float))))
+            if not d <= 1e-9:
+                raise Wrong(f"ensemble and single solve differ by {d:.2g}")
+    return bool(np.all(ens.success))
+
+
+def case_curvature(rng: np.random.Generator, k: int) -> bool:
+    chain = shared_chain("curvature", k, rng)
+    h0, _ = chart_start(chain, rng)
+    p = chain.to_point(h0)
+    project = HingeConstraints(chain).project_velocity
+    u, v = (project(p, rng.standard_normal(p.size)) for _ in range(2))
+    metric = chain.metric()
+    K1, K2 = float(metric.sectional_curvature(p, u, v)), float(metric.sectional_curvature(p, v, u))
+    if not (np.isfinite(K1) and abs(K1 - K2) <= 1e-9 * max(1.0, abs(K1))):
+        raise Wrong(f"K(u, v) = {K1} but K(v, u) = {K2}")
+    return True
+
+
+def case_lyapunov(rng: np.random.Generator) -> bool:
+    chain = random_chain(rng, spread=False)
+    while chain.n < 4:
+        chain = random_chain(rng, spread=False)
+    h0, v0 = chart_start(chain, rng, latitude=1.4)
+    # finite-time estimates at T = 5 neither pair as +-lambda nor come out ordered: only what must hold is checked
+    r = lyapunov_exponent(chain, h0, v0, 5.0, k=2, throw=False)
+    if r.success and not (np.all(np.isfinite(r.history)) and len(r.history) == len(r.times)
+                          and r.relative_energy_error <= 1e-9):
+        raise Wrong(f"exponents {r.exponents}, energy error {r.relative_energy_error:.2g}")
+    return r.success
+
+
+def case_precision(rng: np.random.Generator) -> bool:
+    chain = random_chain(rng, spread=False)
+    h0, v0 = chart_start(chain, rng, latitude=1.4)
+    long = free_motion(chain, h0, v0, 1.0, method="hinges", fp_type=np.longdouble, throw=False, dense=False)
+    if not long.success:
+        return False
+    solved_check(chain, long, v0)
+    double = free_motion(chain, h0, v0, 1.0, method="hinges", throw=False, dense=False)
+    if double.success:
+        d = np.max(np.abs(long.solution.end_state()[0].astype(float) - double.solution.end_state()[0].astype(float)))
+        if not d <= 1e-9 * max(1.0, 1.0 / min(1.0, abs(chain.n - chain.L)) ** 0.5):
+            raise Wrong(f"long double and float64 differ by {d:.2g}")
+    return True
+
+
+CASES: dict[str, Callable[[np.random.Generator, int], bool]] = {
+    "chart": case_chart,
+    "bad input": lambda rng, k: case_bad_input(rng),
+    "hinges": lambda rng, k: case_motion(rng, "hinges", float(rng.uniform(0.1, 3))),
+    "charts": lambda rng, k: case_motion(rng, "charts", float(rng.uniform(0.1, 3))),
+    "any lengths": lambda rng, k: case_any_lengths(rng),
+    "long": lambda rng, k: case_motion(rng, "hinges", float(rng.uniform(20, 50))),
+    "ensemble": lambda rng, k: case_ensemble(rng),
+    "curvature": case_curvature,
+    "lyapunov": lambda rng, k: case_lyapunov(rng),
+    "precision": lambda rng, k: case_precision(rng),
+}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--count", type=int, default=20000)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--hang", type=float, default=60.0)
+    args = ap.parse_args()
+    counts = {name: max(1, round(share * args.count / 20000)) for name, share in SHARES.items()}
+    tally: dict[str, collections.Counter] = {name: collections.Counter() for name in CASES}
+    examples: dict[str, list[str]] = collections.defaultdict(list)
+    t_start = time.perf_counter()
+    for name, count in counts.items():
+        rng = np.random.default_rng([args.seed, list(CASES).index(name)])
+        t0 = time.perf_counter()
+        for k in range(count):
+            done = threading.Event()
+
+            def alarm() -> None:
+                if not done.wait(args.hang):
+                    os.kill(os.getpid(), signal.SIGINT)
+
+            threading.Thread(target=alarm, daemon=True).start()
+            try:
+                tally[name]["success" if CASES[name](rng, k) else "honest failure"] += 1
+            except Wrong as e:
+                tally[name]["WRONG ANSWER AS SUCCESS"] += 1
+                examples[name].append(f"case {k}: {e}")
+            except KeyboardInterrupt:  # stopped by the timer: longer than --hang (not necessarily past its budget)
+                tally[name]["SLOW"] += 1
+                examples[name].append(f"case {k}: ran past {args.hang} s")
+            except (ValueError, TypeError, ArithmeticError, RuntimeError) as e:
+                tally[name][f"refused ({type(e).__name__})"] += 1
+                if name in ("any lengths", "chart", "curvature"):  # these starts are valid: a refusal is news
+                    examples[name].append(f"case {k}: {type(e).__name__}: {str(e)[:160]}")
+            except Exception as e:  # noqa: BLE001 - an unexpected kind of error is itself a finding
+                tally[name][f"OTHER {type(e).__name__}"] += 1
+                examples[name].append(f"case {k}: {traceback.format_exception_only(e)[-1][:200]}")
+            finally:
+                done.set()
+        print(f"{name}: {count} cases in {time.perf_counter() - t0:.0f} s: "
+              + ", ".join(f"{k} {v}" for k, v in sorted(tally[name].items())), flush=True)
+        for line in examples[name][:5]:
+            print(f"    {line}", flush=True)
+    total = sum(counts.values())
+    wrong = sum(c["WRONG ANSWER AS SUCCESS"] for c in tally.values())
+    hangs = sum(c["SLOW"] for c in tally.values())
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB on Linux
+    print(f"total {total} cases in {time.perf_counter() - t_start:.0f} s: wrong answers returned as success {wrong}, "
+          f"runs stopped after {args.hang:g} s {hangs}, peak RSS {rss:.2f} GiB")
+
+
+if __name__ == "__main__":
+    main()
