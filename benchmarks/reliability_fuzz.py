@@ -1,6 +1,6 @@
 """Fuzz the library by families: is a wrong answer ever returned as a success, does anything hang, how much memory?
 
-Run ``python -m benchmarks.reliability_fuzz [--count 20000] [--seed 0] [--hang 60]``.  Cases are drawn from
+Run ``python -m benchmarks.reliability_fuzz [--count 20000] [--seed 0] [--hang 60] [--families chart,...]``.  Cases are drawn from
 families in fixed shares of ``--count`` (the cheap chart layer most, solves fewer); each is judged by numbers
 recomputed here from what the library returned, never by its own verdict:
 
@@ -239,8 +239,13 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=20000)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--hang", type=float, default=60.0)
+    ap.add_argument("--families", default=",".join(SHARES), help="comma-separated, of: " + ", ".join(SHARES))
     args = ap.parse_args()
-    counts = {name: max(1, round(share * args.count / 20000)) for name, share in SHARES.items()}
+    families = args.families.split(",")
+    unknown = set(families) - set(SHARES)
+    if unknown:
+        ap.error(f"unknown families {sorted(unknown)}: choose from {list(SHARES)}")
+    counts = {name: max(1, round(SHARES[name] * args.count / 20000)) for name in families}
     tally: dict[str, collections.Counter] = {name: collections.Counter() for name in CASES}
     examples: dict[str, list[str]] = collections.defaultdict(list)
     t_start = time.perf_counter()
