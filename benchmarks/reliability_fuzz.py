@@ -47,8 +47,11 @@ from linkage import Chain
 from linkage.constraints import HingeConstraints
 from linkage.ensemble import free_motions
 from linkage.motion import free_motion, lyapunov_exponent
+from manifold import Precision, SaveAt
 
 from .starts import chart_start
+
+NO_DENSE = SaveAt(dense=False)  # the fuzz reads end states and energies only
 
 #: Cases per family at ``--count 20000`` (scaled with it), cheapest first: the families' costs differ by 1000x.
 SHARES = {"chart": 13290, "bad input": 5000, "ensemble": 80, "hinges": 500, "any lengths": 400, "curvature": 300,
@@ -112,7 +115,7 @@ def case_chart(rng: np.random.Generator, k: int) -> bool:
 def case_motion(rng: np.random.Generator, method: str, T: float, **options: Any) -> bool:
     chain = random_chain(rng)
     h0, v0 = chart_start(chain, rng, latitude=1.4)
-    motion = free_motion(chain, h0, v0, T, method=method, throw=False, dense=False, **options)
+    motion = free_motion(chain, h0, v0, T, method=method, throw=False, save=NO_DENSE, **options)
     if motion.success:
         solved_check(chain, motion, v0)
     return motion.success
@@ -137,7 +140,8 @@ def case_bad_input(rng: np.random.Generator) -> bool:
             value = np.nan
     args[name] = value
     try:
-        free_motion(chain, **args, throw=False, dense=False)
+        tol = args.pop("tol")  # the tolerance is a field of the precision group: spoiled there
+        free_motion(chain, **args, precision=Precision(tol=tol), throw=False, save=NO_DENSE)
     except (ValueError, TypeError):
         return False
     raise Wrong(f"accepted {name} = {value!r}")
@@ -162,7 +166,7 @@ def case_any_lengths(rng: np.random.Generator) -> bool:
     # a short link turns at ~|v| / l_k (1e6..1e9 rad/s from a random velocity): a few of its turns
     T = 10.0 ** rng.uniform(-6, -4) if short else float(rng.uniform(0.1, 2))
     motion = free_motion(chain, hinges[0], v0, T, method="hinges", throw=False,
-                         dense=False)  # a refused start raises: counted as an exception
+                         save=NO_DENSE)  # a refused start raises: counted as an exception
     if motion.success:
         solved_check(chain, motion, v0)
     return motion.success
@@ -175,7 +179,7 @@ def case_ensemble(rng: np.random.Generator) -> bool:
     T = float(rng.uniform(0.5, 3))
     ens = free_motions(chain, H, V, T, method="hinges")
     for k in range(3):
-        one = free_motion(chain, H[k], V[k], T, method="hinges", throw=False, dense=False)
+        one = free_motion(chain, H[k], V[k], T, method="hinges", throw=False, save=NO_DENSE)
         if ens.success[k] and one.success:
             d = np.max(np.abs(ens.end_hinges[k] - chain.from_point(one.solution.end_state()[0].astype(float))))
             if not d <= 1e-9:
@@ -212,11 +216,12 @@ def case_lyapunov(rng: np.random.Generator) -> bool:
 def case_precision(rng: np.random.Generator) -> bool:
     chain = random_chain(rng, spread=False)
     h0, v0 = chart_start(chain, rng, latitude=1.4)
-    long = free_motion(chain, h0, v0, 1.0, method="hinges", fp_type=np.longdouble, throw=False, dense=False)
+    long = free_motion(chain, h0, v0, 1.0, method="hinges", precision=Precision(np.longdouble), throw=False,
+                       save=NO_DENSE)
     if not long.success:
         return False
     solved_check(chain, long, v0)
-    double = free_motion(chain, h0, v0, 1.0, method="hinges", throw=False, dense=False)
+    double = free_motion(chain, h0, v0, 1.0, method="hinges", throw=False, save=NO_DENSE)
     if double.success:
         d = np.max(np.abs(long.solution.end_state()[0].astype(float) - double.solution.end_state()[0].astype(float)))
         if not d <= 1e-9 * max(1.0, 1.0 / min(1.0, abs(chain.n - chain.L)) ** 0.5):
