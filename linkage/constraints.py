@@ -37,6 +37,8 @@ hinge Taylor method.  Both evaluate the rods, ``c``, ``G``, ``G v`` and
 from __future__ import annotations
 
 import functools
+import threading
+import weakref
 from fractions import Fraction
 from typing import NamedTuple
 
@@ -54,7 +56,7 @@ from manifold.validation import check_real
 from . import rods
 from .chain import Chain
 
-__all__ = ["ChainSystem", "HingeConstraints", "HingeStart", "start_state", "start_states"]
+__all__ = ["ChainSystem", "chain_system", "HingeConstraints", "HingeStart", "start_state", "start_states"]
 
 #: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
 _PROJECTION_STEPS = 8
@@ -587,3 +589,18 @@ class ChainSystem(ConstrainedSystem):
             E = w[k] * (lagrange if E is None else lagrange + square[k] * E) / pivots[k - 1]
             pivots.append(E if k == n - 1 else w[k + 1] * square[k] + E)  # the last rod ends at a pin
         return pivots
+
+
+#: :func:`chain_system`'s systems, one per chain object (dropped with it).
+_SYSTEMS: weakref.WeakKeyDictionary[Chain, ChainSystem] = weakref.WeakKeyDictionary()
+_SYSTEMS_LOCK = threading.Lock()
+
+
+def chain_system(chain: Chain) -> ChainSystem:
+    """The :class:`ChainSystem` of ``chain``, one per chain object (a chain's lengths and masses are read-only), so
+    that what is built on it once (:meth:`manifold.constrained.ConstrainedGeometry.of`) serves every solve."""
+    with _SYSTEMS_LOCK:
+        system = _SYSTEMS.get(chain)
+        if system is None:
+            system = _SYSTEMS[chain] = ChainSystem(chain)
+        return system

@@ -30,7 +30,7 @@ from manifold.progress import ProgressArgument
 from manifold.sundman import SundmanStepper
 
 from .chain import Chain
-from .constraints import ChainSystem, start_state
+from .constraints import ChainSystem, chain_system, start_state
 from .ensemble import EnsembleMotion, free_motions
 from .lyapunov import lyapunov_exponent, lyapunov_exponents
 from .time_factor import ChainTimeFactor
@@ -304,7 +304,7 @@ def free_motion(
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
     # velocity0 is tangent to start.tangent_tol (checked above): the chart solver's projection only removes rounding
     if method == "hinges":
-        solution = solve_constrained(ChainSystem(chain), x0, v0, t_final, precision=precision, save=save,
+        solution = solve_constrained(chain_system(chain), x0, v0, t_final, precision=precision, save=save,
                                      metric=chart_metric(chain), progress=progress, **kwargs)
     else:
         if kwargs.get("stepper") is None:  # Sundman's time: 13-44 % fewer steps (docs/methods.md)
