@@ -18,7 +18,9 @@ this machine (ratios are the numbers to compare; absolute times are noise):
    heyoka's disk cache, and CPU time per Taylor step;
 6. constraint stabilisation: Baumgarte (rates 0.1, 1, 10), projection every
    10 time units, none -- wall time, rod-length drift and energy error over
-   T = 1e4 at n = 4.
+   T = 1e4 at n = 4;
+7. the real128 targets: n = 4, T = 100 from a pole (a start whose first latitude is pi/2 in chart 0), both
+   methods at their defaults, CPU time, interleaved rounds, fastest of them, against 1.5 s (hinges) and 6 s (charts).
 
 Errors are max |hinge - reference| over 101 samples; the reference is the
 chart method in long double (an independent route).
@@ -33,7 +35,8 @@ import time
 import heyoka as hy
 import numpy as np
 
-from linkage.constraints import ChainSystem
+from linkage import Chain
+from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
 from manifold.constrained import compiled_constrained
@@ -146,6 +149,51 @@ def quad_precision(T: float = 100.0, repeats: dict | None = None) -> dict:
     return out
 
 
+#: The real128 targets at n = 4, T = 100 from a pole: CPU seconds per method.
+QUAD_TARGETS = {"hinges": 1.5, "charts": 6.0}
+
+
+def pole_start(n: int = 4, seed: int = 0) -> tuple:
+    """A chain with ``L = n - 1.3``, hinges at a pole of chart 0 (first latitude ``pi/2``) and a unit-energy velocity:
+    a random hinge velocity projected K-orthogonally onto the tangent space (chart 0 is singular there)."""
+    chain = Chain(n, n - 1.3)
+    rng = np.random.default_rng(seed)
+    a = np.append(rng.uniform(-1, 1, n - 3), 0.3)
+    a[0] = np.pi / 2
+    x = chain.atlas().get_point(0, a)
+    w = HingeConstraints(chain).project_velocity(x, rng.normal(size=x.size))
+    w = w / np.sqrt(w @ chain.ambient_metric @ w)  # kinetic energy 1/2 w^T K w = 1/2
+    return chain, chain.from_point(x), chain.from_point(w)
+
+
+def quad_targets(T: float = 100.0, rounds: int = 3) -> dict:
+    """Section 7: real128, n = 4, ``T`` from a pole (:func:`pole_start`), hinges and charts at their defaults:
+    CPU time of this process, the methods interleaved round by round, the fastest of ``rounds`` (compiles excluded:
+    a short solve of each first), with steps, energy error and the distance of the two end points."""
+    chain, h0, w0 = pole_start(4)
+    quad = Precision(fp_type=hy.real128)
+    for method in QUAD_TARGETS:
+        free_motion(chain, h0, w0, 0.01, method=method, precision=quad)
+    best = {method: np.inf for method in QUAD_TARGETS}
+    ends, runs = {}, {}
+    for _ in range(rounds):
+        for method in QUAD_TARGETS:
+            c0 = time.process_time()
+            m = free_motion(chain, h0, w0, T, method=method, save=SaveAt(dense=False), precision=quad)
+            best[method] = min(best[method], time.process_time() - c0)
+            ends[method], runs[method] = m.solution.end_state()[0], m
+    out: dict = {}
+    for method, target in QUAD_TARGETS.items():
+        m = runs[method]
+        out[method] = {"cpu": best[method], "steps": m.n_steps, "energy": m.relative_energy_error, "target": target}
+        print(f"  {method:7s}: CPU {best[method]:6.2f} s (fastest of {rounds} interleaved rounds; target {target:g} s), "
+              f"{m.n_steps} steps, {1e3 * best[method] / m.n_steps:.2f} ms per step, "
+              f"energy error {m.relative_energy_error:.1e}")
+    out["agreement"] = float(np.max(np.abs((ends["hinges"] - ends["charts"]).astype(float))))
+    print(f"  end points of the two methods differ by {out['agreement']:.1e}")
+    return out
+
+
 def float64_accuracy(T_short: float = 20.0, T_long: float = 1e4) -> dict:
     """Section 4: the hinge method's default-tolerance accuracy, energy growth and closure."""
     chain, p0, v0 = generic_start(4, seed=2)
@@ -239,7 +287,7 @@ def stabilisations(T: float = 1e4) -> dict:
     return out
 
 
-def main(quick: bool = False, sections: str = "123456") -> dict:
+def main(quick: bool = False, sections: str = "1234567") -> dict:
     ns = [4, 6] if quick else [4, 6, 8, 10]
     res: dict = {}
     if "1" in sections:
@@ -260,12 +308,15 @@ def main(quick: bool = False, sections: str = "123456") -> dict:
     if "6" in sections:
         print(f"6. stabilisation, n = 4, T = {1e3 if quick else 1e4:g}")
         res["stabilisation"] = stabilisations(1e3 if quick else 1e4)
+    if "7" in sections:
+        print(f"7. real128 targets, n = 4, T = {10 if quick else 100} from a pole")
+        res["quad targets"] = quad_targets(10.0 if quick else 100.0)
     return res
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(prog="python -m benchmarks.method_speed", description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="n = 4, 6 and short horizons (minutes)")
-    parser.add_argument("--sections", default="123456", help="which sections to run, e.g. 13 (default all)")
+    parser.add_argument("--sections", default="1234567", help="which sections to run, e.g. 13 (default all)")
     args = parser.parse_args()
     main(args.quick, args.sections)
