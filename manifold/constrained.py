@@ -636,7 +636,7 @@ class ConstrainedGeometry:
         """Batched ``(c, G v, correction(r), E)`` for ``x, v`` of shape ``(B, N)``."""
         B = x.shape[0]
         r = np.zeros((B, self.m)) if r is None else r
-        args = np.ascontiguousarray(as_fp(np.concatenate([x, v, r], axis=1).T, self.fp))
+        args = np.ascontiguousarray(as_fp(np.concatenate([x.T, v.T, r.T]), self.fp))  # columns: one copy, C-ordered
         pars = self._one_column if B == 1 else np.ascontiguousarray(np.repeat(self._one_column, B, axis=1))
         out = self.cf(args, pars=pars)
         m, N = self.m, self.N
@@ -681,15 +681,18 @@ class ConstrainedGeometry:
         gets exactly what projecting it alone gives.
         """
         c, Gv, _, _ = self(x, v)
-        return self._projected(x.copy(), v.copy(), c, Gv)
+        return self._projected(x.copy(), v.copy(), c, Gv, np.abs(c.astype(float)))
 
-    def _projected(self, x: NDArray, v: NDArray, c: NDArray, Gv: NDArray) -> tuple[NDArray, NDArray]:
-        """:meth:`project` of rows ``x, v`` (the caller's copies, changed in place) given ``c`` and ``G v`` there."""
+    def _projected(self, x: NDArray, v: NDArray, c: NDArray, Gv: NDArray,
+                   c_abs: NDArray) -> tuple[NDArray, NDArray]:
+        """:meth:`project` of rows ``x, v`` (the caller's copies, changed in place) given ``c``, ``G v`` and
+        ``|c|`` (as floats) there."""
         active = np.arange(x.shape[0])
         for step in range(self._max_steps):
             if step:
                 c = self(x[active], v[active])[0]
-            moving = ~np.all(np.abs(c.astype(float)) <= self.floors, axis=1)
+                c_abs = np.abs(c.astype(float))
+            moving = ~(c_abs <= self.floors).all(axis=1)
             active, c = active[moving], c[moving]
             if not active.size:
                 break
@@ -722,7 +725,7 @@ class ConstrainedGeometry:
             j = int(np.argmax(~(c0[k] <= self.start_tolerances)))
             raise ValueError(f"{name(k)} is not on the constraint manifold: |c_{j}(x0)| = {c0[k, j]:.3g} exceeds "
                              f"{self.start_tolerances[j]:.3g}")
-        x, v = self._projected(x, v, c, Gv)
+        x, v = self._projected(x, v, c, Gv, c0)
         E0 = self(x, v)[3]
         E0f = np.array([float(e) for e in E0])
         if not np.all(np.isfinite(E0f)):

@@ -100,12 +100,16 @@ def fp_name(fp_type) -> str:
     return next(name for name, t in FP_NAMES.items() if t is fp_type)
 
 
+#: ``eps / 2`` of the hardware types, read once (``numpy.finfo`` costs microseconds per call, a solve asks several times).
+_HARDWARE_ROUNDOFF = {t: float(np.finfo(t).eps) / 2 for t in (float, np.float64, np.longdouble)}
+
+
 def unit_roundoff(fp_type) -> float:
     """``2**-p`` for a ``p``-bit significand: 2**-53 (float), 2**-64 (x86 long double), 2**-113, 2**-bits."""
     if isinstance(fp_type, MultiPrecision):
         return 2.0**-fp_type.bits
-    if fp_type in (float, np.float64, np.longdouble):
-        return float(np.finfo(fp_type).eps) / 2
+    if fp_type in _HARDWARE_ROUNDOFF:
+        return _HARDWARE_ROUNDOFF[fp_type]
     if fp_type is getattr(hy, "real128", None):
         return 2.0**-113
     raise TypeError(
