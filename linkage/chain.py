@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numbers
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -139,6 +140,8 @@ class Chain:
         Number of rods and pin distance.
     unit_rods
         Whether every ``l_k == 1`` (given as an integer ``n`` or as lengths).
+    built
+        What other modules build once from the chain, by name (:func:`linkage.constraints.chain_system`).
     """
 
     def __init__(
@@ -160,6 +163,9 @@ class Chain:
         self._atlases: dict = {}  # built once: an n = 8 atlas costs ~25 ms
         self._refusal: tuple[str | None] | None = None  # (why there is no atlas, or None), decided once
         self._metric: InducedMetric | None = None  # of the default atlas (its checks of K cost ~0.1 ms a call)
+        #: What other modules build once from the chain (read-only lengths and masses), by name: the
+        #: :func:`linkage.constraints.chain_system` under ``"chain system"``.
+        self.built: dict[str, Any] = {}
 
     def __repr__(self) -> str:
         if self.unit_rods:

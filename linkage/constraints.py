@@ -37,8 +37,6 @@ hinge Taylor method.  Both evaluate the rods, ``c``, ``G``, ``G v`` and
 from __future__ import annotations
 
 import functools
-import threading
-import weakref
 from fractions import Fraction
 from typing import NamedTuple
 
@@ -591,16 +589,12 @@ class ChainSystem(ConstrainedSystem):
         return pivots
 
 
-#: :func:`chain_system`'s systems, one per chain object (dropped with it).
-_SYSTEMS: weakref.WeakKeyDictionary[Chain, ChainSystem] = weakref.WeakKeyDictionary()
-_SYSTEMS_LOCK = threading.Lock()
-
 
 def chain_system(chain: Chain) -> ChainSystem:
-    """The :class:`ChainSystem` of ``chain``, one per chain object (a chain's lengths and masses are read-only), so
-    that what is built on it once (:meth:`manifold.constrained.ConstrainedGeometry.of`) serves every solve."""
-    with _SYSTEMS_LOCK:
-        system = _SYSTEMS.get(chain)
-        if system is None:
-            system = _SYSTEMS[chain] = ChainSystem(chain)
-        return system
+    """The :class:`ChainSystem` of ``chain``, one per chain object (a chain's lengths and masses are read-only), kept
+    in :attr:`Chain.built`, so that what is built on it once (:meth:`manifold.constrained.ConstrainedGeometry.of`)
+    serves every solve."""
+    system = chain.built.get("chain system")
+    if system is None:
+        system = chain.built.setdefault("chain system", ChainSystem(chain))
+    return system

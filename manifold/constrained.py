@@ -39,7 +39,6 @@ from __future__ import annotations
 import functools
 import threading
 import time
-import weakref
 from abc import ABC, abstractmethod
 from collections.abc import Hashable, Iterator
 from contextlib import contextmanager
@@ -618,8 +617,8 @@ class ConstrainedGeometry:
     def of(cls, system: ConstrainedSystem, fp_type: Any) -> ConstrainedGeometry:
         """The geometry of ``system`` in ``fp_type``, built once per system object and precision (its packed
         parameters, speed scale and ``K`` cost ~30 us at n = 4, more than evaluating it) and shared after."""
-        with _GEOMETRIES_LOCK:
-            cached = _GEOMETRIES.setdefault(system, {})
+        # kept on the system itself (a weak-keyed table would be kept alive by its geometries, which hold the system)
+        cached = vars(system).setdefault("_geometries", {})
         try:
             return cached[fp_type]
         except KeyError:
@@ -732,11 +731,6 @@ class ConstrainedGeometry:
             k = int(np.argmax(~np.isfinite(E0f)))
             raise ValueError(f"{name(k).replace('x0', 'v0', 1)} gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0[k])):.3g})")
         return x, v, E0, damping_rate(self.speed_scale, rate, E0f, t_final)
-
-
-#: :meth:`ConstrainedGeometry.of`'s geometries, per system object (dropped with it) and precision.
-_GEOMETRIES: weakref.WeakKeyDictionary[ConstrainedSystem, dict[Any, ConstrainedGeometry]] = weakref.WeakKeyDictionary()
-_GEOMETRIES_LOCK = threading.Lock()
 
 
 def speed_scale(system: ConstrainedSystem) -> float:
