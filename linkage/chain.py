@@ -346,7 +346,7 @@ class Chain:
                 f"a {what} is expected as complex hinges p_j = x_j + i y_j, got an array of dtype {h.dtype} "
                 "(for an interleaved real point (x_1, y_1, ...) use Chain.from_point)"
             )
-        if not np.all(np.isfinite(h)):
+        if not np.isfinite(h).all():
             raise ConfigurationError(f"{what} must be finite, got {h}")
         return h.astype(complex)
 

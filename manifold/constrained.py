@@ -718,8 +718,8 @@ class ConstrainedGeometry:
         x, v = as_fp(x0, self.fp), as_fp(v0, self.fp)  # new arrays: the projection changes them in place
         c, Gv, _, _ = self(x, v)  # the check's c and G v are the projection's first
         c0 = np.abs(c.astype(float))
-        bad = ~np.all(c0 <= self.start_tolerances, axis=1)
-        if np.any(bad):
+        bad = ~(c0 <= self.start_tolerances).all(axis=1)
+        if bad.any():
             k = int(np.argmax(bad))
             j = int(np.argmax(~(c0[k] <= self.start_tolerances)))
             raise ValueError(f"{name(k)} is not on the constraint manifold: |c_{j}(x0)| = {c0[k, j]:.3g} exceeds "
@@ -727,7 +727,7 @@ class ConstrainedGeometry:
         x, v = self._projected(x, v, c, Gv, c0)
         E0 = self(x, v)[3]
         E0f = np.array([float(e) for e in E0])
-        if not np.all(np.isfinite(E0f)):
+        if not np.isfinite(E0f).all():
             k = int(np.argmax(~np.isfinite(E0f)))
             raise ValueError(f"{name(k).replace('x0', 'v0', 1)} gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0[k])):.3g})")
         return x, v, E0, damping_rate(self.speed_scale, rate, E0f, t_final)

@@ -57,7 +57,7 @@ def energy_violation(deviations: NDArray, times: Any, n_steps: int, tol: float, 
     err = np.asarray(deviations, dtype=float)
     bound = energy_bound(n_steps, tol)
     bad = ~(err <= bound)  # NaN counts as a violation
-    if not np.any(bad):
+    if not bad.any():
         return None
     k = int(np.argmax(bad))
     return (f"energy check failed at t = {float(times[k]):.6g} in {where}: "

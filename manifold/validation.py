@@ -121,7 +121,7 @@ def real_array(name: str, value: object, *, finite: bool = True,
         what = "complex" if arr.dtype.kind == "c" else arr.dtype.name
         raise TypeError(f"{name} must be {expected}, got {what} values")
     arr = arr.astype(float)
-    if finite and not np.all(np.isfinite(arr)):
+    if finite and not np.isfinite(arr).all():  # the method: no dispatch through np.all (~2 us a call)
         raise ValueError(f"{name} must be finite, got {value!r}")
     return arr
 
