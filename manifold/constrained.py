@@ -102,6 +102,10 @@ class ConstrainedSystem(ABC):
     ambient_dim: int
     n_constraints: int
 
+    def __getstate__(self) -> dict:
+        # the geometries built on the system (ConstrainedGeometry.of) are caches that hold it: rebuilt where unpickled
+        return {name: value for name, value in vars(self).items() if name != "_geometries"}
+
     @property
     @abstractmethod
     def key(self) -> Hashable:
