@@ -23,7 +23,8 @@ Run ``python -m benchmarks.energy_growth [--quick] [--long]``.  Prints:
    ``--methods`` takes ``hinges``, ``charts`` (the default chart path: Sundman's
    time, the state ``(a, V)``, its drift damped) and the chart path with one
    part switched off: ``charts:t`` (in ``t``), ``charts:ac`` (the state
-   ``(a, c)``), ``charts:undamped`` (damping rate 0); and ``charts:longdouble``
+   ``(a, c)``), ``charts:undamped`` (damping rate 0), the chart path with the mass-weighted state ``(a, R J c)``,
+   ``charts:weighted`` (:mod:`manifold.weighted_velocity`); and ``charts:longdouble``
    (the default chart path in long double: at the same tolerance the same
    truncation, 2^-11 of the rounding).
 3. **Where the chart path's energy changes** (n = 4, L = 2.5, ``--T3``, default
@@ -57,6 +58,7 @@ from linkage.time_factor import ChainTimeFactor
 from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper
+from manifold.weighted_velocity import WeightedVelocity
 
 from .starts import chart_start
 
@@ -99,8 +101,11 @@ def _options(chain: Chain, method: str, tol: float | None) -> dict:
         return {"method": method, "precision": Precision(tol=tol)}
     if method == "charts:longdouble":
         return {"method": "charts", "precision": Precision(np.longdouble, tol)}
-    velocity = None if method == "charts:ac" else ConstrainedVelocity(
-        ChainSystem(chain), **({"rate": 0.0} if method == "charts:undamped" else {}))
+    if method == "charts:weighted":
+        velocity: ConstrainedVelocity | WeightedVelocity | None = WeightedVelocity(ChainSystem(chain), block=2)
+    else:
+        velocity = None if method == "charts:ac" else ConstrainedVelocity(
+            ChainSystem(chain), **({"rate": 0.0} if method == "charts:undamped" else {}))
     stepper = (TaylorStepper(tol=tol, velocity=velocity) if method == "charts:t"
                else SundmanStepper(ChainTimeFactor(chain), tol=tol, velocity=velocity))
     return {"method": "charts", "stepper": stepper}

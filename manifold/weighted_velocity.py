@@ -9,7 +9,7 @@ scale.  Here the state is ``(a, w)`` with
 
     w = (R \otimes I_b) V, \qquad R^T R = B, \qquad |w|^2 = V^T (B \otimes I_b) V = 2 E,
 
-``B`` the chart's metric block (``M^T K M = B \otimes I_b``, :attr:`~manifold.geodesic_system.Layout`), ``R`` its
+``B`` the chart's metric block (``M^T K M = B \otimes I_b``, :class:`~manifold.geodesic_system.Layout`), ``R`` its
 upper triangular Cholesky factor (``sqrt(m_k)`` on the diagonal for unrelabelled hinge masses), so every component
 of ``w`` carries kinetic energy on one scale.  The equations are those of ``(a, V)`` with ``V`` read from ``w``:
 
@@ -95,7 +95,7 @@ class WeightedVelocity(StateTerm):
         return self.velocity.n_params + 2 * len(self._upper[0])
 
     def check(self, family: CompiledFamily, form: str) -> None:
-        """As :meth:`ConstrainedVelocity.check`, and refuse a family of another block size."""
+        """As :meth:`~manifold.ambient_velocity.ConstrainedVelocity.check`, and refuse a family of another block size."""
         self.velocity.check(family, form)
         if family.family.block != self.block:
             raise ValueError(f"block: {self!r} weighs blocks of {self.block}, the charts of {family.family!r} have "
