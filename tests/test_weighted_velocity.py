@@ -24,6 +24,7 @@ from manifold.precision import as_fp
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper
 from manifold.terms import SegmentStart
+from manifold.testing import check_geodesic_energy
 from manifold.weighted_velocity import WeightedVelocity
 
 from .conftest import unit_speed_start
@@ -151,3 +152,12 @@ def test_the_stepper_pickles_and_runs_the_same():
     first = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, stepper=stepper)
     again = solve_chart_exp_ode(chain.metric(), p0, v0, 2.0, stepper=copy)
     assert np.array_equal(first.end_state()[1], again.end_state()[1])
+
+
+def test_the_weighted_velocity_passes_the_conformance_energy_check_across_switches():
+    """``manifold.testing``'s energy check, as the default state passes it: spread masses, at least two switches."""
+    chain = Chain(5, 3.3, hinge_masses=[2e-3, 5.0, 0.1, 40.0])
+    p0, v0 = _start(chain, 11)
+    stepper = SundmanStepper(ChainTimeFactor(chain), velocity=WeightedVelocity(ChainSystem(chain), block=2))
+    check_geodesic_energy(chain.metric(), p0, v0, 30.0, min_switches=2, q_out=0.45,
+                          stepper=stepper).raise_on_failure()
