@@ -99,6 +99,8 @@ class ConstrainedVelocity(StateTerm):
         drift alone.  The default is chosen by measurement (``docs/methods.md``).
     """
 
+    label = "(a, J c)"
+
     def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE) -> None:
         if not isinstance(system, ConstrainedSystem):
             raise TypeError(f"system must be a manifold.constrained.ConstrainedSystem, got {type(system).__name__}")

@@ -161,7 +161,7 @@ class TaylorStepper(Stepper):
                              f"every equation before it), got {self.terms!r}")
         self.clock: Clock | None = clocks[0] if clocks else None
         if velocity is not None:
-            self.name = f"{self.name} (a, J c)"  # the solution's method says which state was integrated
+            self.name = f"{self.name} {velocity.label}"  # the solution's method says which state was integrated
 
     def relative_tolerance(self, fp_type: Any) -> float:
         # The default tolerance is chosen to be as accurate as the machine epsilon, and is held to that: judged by

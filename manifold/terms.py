@@ -166,7 +166,15 @@ class Term(ABC):
 
 
 class StateTerm(Term):
-    """The first term of a composition: it sets the state the integrator carries."""
+    """The first term of a composition: it sets the state the integrator carries.
+
+    Attributes
+    ----------
+    label
+        The state's name, e.g. ``"(a, J c)"``: a solution's ``method`` says which state was integrated.
+    """
+
+    label: str = "(a, c)"
 
     @abstractmethod
     def check(self, family: CompiledFamily, form: str) -> None:

@@ -66,6 +66,8 @@ class WeightedVelocity(StateTerm):
         Damping rate of the normal drift, as for :class:`~manifold.ambient_velocity.ConstrainedVelocity`.
     """
 
+    label = "(a, w)"
+
     def __init__(self, system: ConstrainedSystem, block: int, rate: float = DEFAULT_RATE) -> None:
         self.velocity = ConstrainedVelocity(system, rate)  # checks system and rate
         self.block = check_positive_int("block", block)

@@ -58,6 +58,7 @@ def test_the_weighted_velocity_gives_the_same_motion_switches_and_energy(lengths
     weighted = solve_chart_exp_ode(chain.metric(), p0, v0, T,
                                    stepper=kind(*factor, velocity=WeightedVelocity(system, block=2)))
     assert weighted.t_reached == T and weighted.success and ambient.success
+    assert weighted.method.endswith(" (a, w)") and ambient.method.endswith(" (a, J c)")  # the state integrated
     assert [(s.from_chart, s.to_chart) for s in weighted.switches] == [(s.from_chart, s.to_chart)
                                                                         for s in ambient.switches]
     assert np.allclose([s.time for s in weighted.switches], [s.time for s in ambient.switches], atol=1e-9, rtol=0)
