@@ -335,8 +335,9 @@ function currentHinges() {
 }
 
 // a drag records (time of the pointer event, hinges there); the release launches with the velocity of the last
-// ~80 ms of it, unless the pointer rested for HOLD_MS before it
+// ~80 ms of it, unless the pointer rested for holdMs (HOLD_MS unless a test sets it) before it
 const HOLD_MS = 250;
+let holdMs = HOLD_MS;
 function makeDrag(project) {
   let history = [], busy = null, target = null;
   async function pump() {
@@ -358,7 +359,7 @@ function makeDrag(project) {
       S.metrics.tFlick = performance.now(); S.metrics.flickToFirstFrameMs = null;
       if (busy) await busy;
       const last = history[history.length - 1];
-      if (S.metrics.tFlick - last.time > HOLD_MS) return;  // held still, then released: the chain stays posed
+      if (S.metrics.tFlick - last.time > holdMs) return;  // held still, then released: the chain stays posed
       const old = [...history].reverse().find((e) => last.time - e.time >= 80) ?? history[0];
       const dt = (last.time - old.time) / 1000;
       if (dt <= 0) return;
@@ -598,6 +599,8 @@ window.linkageExplorer = {
   pause() { S.paused = true; $('c-pause').textContent = 'play'; return this.state(); },
   resume() { S.paused = false; $('c-pause').textContent = 'pause'; return this.state(); },
   setSpeed(v) { S.speed = v; $('c-speed').value = v; $('c-speed-out').textContent = v; },
+  // a test driving the mouse from another process sets a longer hold: its own latency under load is no rest
+  setHoldMs(ms) { const old = holdMs; holdMs = ms; return old; },
   hingeScreen: screenOfHinge,
   cubeScreen: screenOfAngles,
   dragPending: () => chainDrag.pending() || spaceDrag.pending(),
