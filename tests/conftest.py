@@ -148,3 +148,13 @@ class DifferentiatedFamily(SuspensionFamily):
 
     def point_jets(self, a, c, fp_type):
         return None
+
+
+def atlas_start(chain, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """A generic start of unit kinetic energy, in the chain's best chart: ambient point and velocity."""
+    rng = np.random.default_rng(seed)
+    atlas = chain.atlas()
+    p0 = atlas.get_point(0, rng.uniform(-1.0, 1.0, chain.n - 2))
+    i = atlas.get_chart_index(p0)
+    v0 = atlas.charts[i].tangent_vector(atlas.get_parameters(i, p0), rng.normal(size=chain.n - 2))
+    return p0, v0 / np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))

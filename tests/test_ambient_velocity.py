@@ -26,17 +26,8 @@ from manifold.constrained import damping_rate, speed_scale
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper
 
-from .conftest import assert_same_motion, unit_speed_start
+from .conftest import assert_same_motion, atlas_start, unit_speed_start
 
-
-def _start(chain: Chain, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """A generic start of unit kinetic energy, in the chain's best chart."""
-    rng = np.random.default_rng(seed)
-    atlas = chain.atlas()
-    p0 = atlas.get_point(0, rng.uniform(-1.0, 1.0, chain.n - 2))
-    i = atlas.get_chart_index(p0)
-    v0 = atlas.charts[i].tangent_vector(atlas.get_parameters(i, p0), rng.normal(size=chain.n - 2))
-    return p0, v0 / np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))
 
 
 @pytest.mark.parametrize("sundman", [False, True])
@@ -48,7 +39,7 @@ def _start(chain: Chain, seed: int) -> tuple[np.ndarray, np.ndarray]:
 ])
 def test_the_ambient_velocity_gives_the_same_motion_switches_and_energy(lengths, L, masses, densities, T, sundman):
     chain = Chain(lengths, L, hinge_masses=masses, rod_densities=densities)
-    p0, v0 = _start(chain, chain.n)
+    p0, v0 = atlas_start(chain, chain.n)
     factor = [ChainTimeFactor(chain)] if sundman else []
     kind = SundmanStepper if sundman else TaylorStepper
     plain = solve_chart_exp_ode(chain.metric(), p0, v0, T, stepper=kind(*factor))
@@ -99,7 +90,7 @@ def test_a_bad_velocity_is_refused_by_name():
     with pytest.raises(TypeError, match="system must be a manifold.constrained.ConstrainedSystem"):
         ConstrainedVelocity(Chain(4, 2.5))  # type: ignore[arg-type]
     chain = Chain(4, 2.5)
-    p0, v0 = _start(chain, 1)
+    p0, v0 = atlas_start(chain, 1)
     other = ConstrainedVelocity(ChainSystem(Chain(5, 3.5)))
     with pytest.raises(ValueError, match=r"velocity: the constraint system lives in R\^8, the charts .* in R\^6"):
         solve_chart_exp_ode(chain.metric(), p0, v0, 1.0, stepper=TaylorStepper(velocity=other))
@@ -111,7 +102,7 @@ def test_a_bad_velocity_is_refused_by_name():
 def test_the_stepper_pickles_and_the_solution_names_its_state():
     """Ensembles send steppers to other processes; the solution's ``method`` says which state was integrated."""
     chain = Chain(4, 2.5)
-    p0, v0 = _start(chain, 3)
+    p0, v0 = atlas_start(chain, 3)
     stepper = SundmanStepper(ChainTimeFactor(chain), velocity=ConstrainedVelocity(ChainSystem(chain), rate=3.0))
     copy = pickle.loads(pickle.dumps(stepper))
     assert copy.velocity.rate == 3.0

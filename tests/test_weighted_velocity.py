@@ -27,17 +27,8 @@ from manifold.terms import SegmentStart
 from manifold.testing import check_geodesic_energy
 from manifold.weighted_velocity import WeightedVelocity
 
-from .conftest import unit_speed_start
+from .conftest import atlas_start, unit_speed_start
 
-
-def _start(chain: Chain, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """A generic start of unit kinetic energy, in the chain's best chart (ambient point and velocity)."""
-    rng = np.random.default_rng(seed)
-    atlas = chain.atlas()
-    p0 = atlas.get_point(0, rng.uniform(-1.0, 1.0, chain.n - 2))
-    i = atlas.get_chart_index(p0)
-    v0 = atlas.charts[i].tangent_vector(atlas.get_parameters(i, p0), rng.normal(size=chain.n - 2))
-    return p0, v0 / np.sqrt(2 * chain.metric().ambient_kinetic_energy(v0))
 
 
 @pytest.mark.parametrize("sundman", [False, True])
@@ -50,7 +41,7 @@ def _start(chain: Chain, seed: int) -> tuple[np.ndarray, np.ndarray]:
 ])
 def test_the_weighted_velocity_gives_the_same_motion_switches_and_energy(lengths, L, masses, densities, T, sundman):
     chain = Chain(lengths, L, hinge_masses=masses, rod_densities=densities)
-    p0, v0 = _start(chain, chain.n)
+    p0, v0 = atlas_start(chain, chain.n)
     factor = [ChainTimeFactor(chain)] if sundman else []
     kind = SundmanStepper if sundman else TaylorStepper
     system = ChainSystem(chain)
@@ -138,7 +129,7 @@ def test_bad_arguments_are_refused_by_name():
         WeightedVelocity(ChainSystem(chain), block=4)
     with pytest.raises(ValueError, match="rate must be a finite real number >= 0"):
         WeightedVelocity(ChainSystem(chain), block=2, rate=-1.0)
-    p0, v0 = _start(chain, 1)
+    p0, v0 = atlas_start(chain, 1)
     with pytest.raises(ValueError, match="block: .* weighs blocks of 3, the charts of .* have blocks of 2"):
         solve_chart_exp_ode(chain.metric(), p0, v0, 1.0,
                             stepper=TaylorStepper(velocity=WeightedVelocity(ChainSystem(chain), block=3)))
@@ -146,7 +137,7 @@ def test_bad_arguments_are_refused_by_name():
 
 def test_the_stepper_pickles_and_runs_the_same():
     chain = Chain(4, 2.5, hinge_masses=[1e-2, 1.0, 30.0])
-    p0, v0 = _start(chain, 3)
+    p0, v0 = atlas_start(chain, 3)
     stepper = SundmanStepper(ChainTimeFactor(chain), velocity=WeightedVelocity(ChainSystem(chain), 2, rate=2.0))
     copy = pickle.loads(pickle.dumps(stepper))
     assert copy.velocity.block == 2 and copy.velocity.velocity.rate == 2.0
@@ -158,7 +149,7 @@ def test_the_stepper_pickles_and_runs_the_same():
 def test_the_weighted_velocity_passes_the_conformance_energy_check_across_switches():
     """``manifold.testing``'s energy check, as the default state passes it: spread masses, at least two switches."""
     chain = Chain(5, 3.3, hinge_masses=[2e-3, 5.0, 0.1, 40.0])
-    p0, v0 = _start(chain, 11)
+    p0, v0 = atlas_start(chain, 11)
     stepper = SundmanStepper(ChainTimeFactor(chain), velocity=WeightedVelocity(ChainSystem(chain), block=2))
     check_geodesic_energy(chain.metric(), p0, v0, 30.0, min_switches=2, q_out=0.45,
                           stepper=stepper).raise_on_failure()
