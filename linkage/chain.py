@@ -163,8 +163,8 @@ class Chain:
         self._atlases: dict = {}  # built once: an n = 8 atlas costs ~25 ms
         self._refusal: tuple[str | None] | None = None  # (why there is no atlas, or None), decided once
         self._metric: InducedMetric | None = None  # of the default atlas (its checks of K cost ~0.1 ms a call)
-        #: What other modules build once from the chain (read-only lengths and masses), by name: the
-        #: :func:`linkage.constraints.chain_system` under ``"chain system"``.
+        # what other modules build once from the chain (read-only lengths and masses), by name: the
+        # linkage.constraints.chain_system under "chain system" (documented in the class's Attributes)
         self.built: dict[str, Any] = {}
 
     def __repr__(self) -> str:

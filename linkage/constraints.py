@@ -311,15 +311,10 @@ class HingeConstraints:
 class HingeStart(NamedTuple):
     """A start that :func:`start_state` has checked: the functions that integrate from it take it as it is.
 
-    Attributes
-    ----------
-    constraints
-        The chain's :class:`HingeConstraints` (``constraints.chain`` the chain).
-    x0, v0
-        The real interleaved start position (closing to ``1e-9``) and velocity (tangent, finite energy; projected
-        if asked), float64 ``(2(n-1),)``.
-    t_final
-        The end time, a finite nonzero float.
+    Its fields (a named tuple, whose fields autodoc lists itself): ``constraints``, the chain's
+    :class:`HingeConstraints` (``constraints.chain`` the chain); ``x0`` and ``v0``, the real interleaved start
+    position (closing to ``1e-9``) and velocity (tangent, finite energy; projected if asked), float64
+    ``(2(n-1),)``; ``t_final``, the end time, a finite nonzero float.
     """
 
     constraints: HingeConstraints
