@@ -37,17 +37,27 @@ def relative_energy_error(sol) -> float:
     return float(np.max(np.abs(sol.energies - sol.energies[0])) / sol.energies[0])
 
 
+RTOL = 1e-12  # the reference runs' tolerance, given explicitly
+
+
+def energy_bound(sol) -> float:
+    """DOP853 is not symplectic: each step may leave an error of ``rtol`` relative to the state in the energy, and
+    these add up, so the bound is ``steps * rtol``.  Over 30 draws (n = 3..6, T = 10) the largest error was 0.19 of
+    it; a fixed 1e-10 failed near the top of the range (L = 3.89 at n = 4: 1.3e-10 over 353 steps, 0.37 of it)."""
+    return sol.solution.n_steps * RTOL
+
+
 # -- conservation ----------------------------------------------------------------------
 @pytest.mark.parametrize("n", [3, 4, 5, 6])
 @settings(max_examples=3)
 @given(data=st.data())
 def test_energy_is_conserved_and_constraints_hold_over_T10(n, data):
     chain, h0, v0 = data.draw(starts(n))
-    sol = integrate_ambient(chain, h0, v0, 10.0)
+    sol = integrate_ambient(chain, h0, v0, 10.0, rtol=RTOL, atol=RTOL)
     assert sol.success
     assert sol.times[0] == 0 and sol.times[-1] == 10.0 and np.all(np.diff(sol.times) > 0)
     assert sol.energies[0] == pytest.approx(0.5, rel=1e-12)
-    assert relative_energy_error(sol) < 1e-10
+    assert relative_energy_error(sol) < energy_bound(sol)
     assert np.max(sol.closure_residuals) < 1e-9
 
 
@@ -55,8 +65,8 @@ def test_energy_is_conserved_and_constraints_hold_over_T10(n, data):
 @given(st.integers(3, 6).flatmap(lambda n: starts(n, masses=True)))
 def test_other_mass_models_conserve_energy(start_):
     chain, h0, v0 = start_
-    sol = integrate_ambient(chain, h0, v0, 10.0)
-    assert relative_energy_error(sol) < 1e-10
+    sol = integrate_ambient(chain, h0, v0, 10.0, rtol=RTOL, atol=RTOL)
+    assert relative_energy_error(sol) < energy_bound(sol)
     assert np.max(sol.closure_residuals) < 1e-9
 
 
