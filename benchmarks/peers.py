@@ -11,6 +11,8 @@ start and with its damping rate:
 
 Ours: ``free_motion(method="hinges")`` and ``free_motion(method="charts")`` (its default stepper),
 each as a user calls it (start check, compile fetched from the cache, ``t_eval``, no dense output).
+``--compile-modes`` adds the hinges with heyoka's compact mode forced on and off (``compact_mode=True`` /
+``False``), each against DOP853: what the default compile option (``default_compact_mode``) gains or loses.
 
 Conditions (the same for every row): a generic unit-energy start (``generic_start``:
 ``L = n - 1.3``, unit hinge masses), T = 20, the state at 101 equally spaced times; the error of a
@@ -61,6 +63,9 @@ PEER_RTOLS = (1e-6, 1e-8, 1e-10, 1e-12, 1e-13)
 TARGETS: tuple[float | None, ...] = (1e-8, 1e-10, None)
 #: The columns of the table: (ours, peer); the last compares our two methods (which method when).
 PAIRS = (("hinges", "DOP853"), ("hinges", "diffrax"), ("charts", "DOP853"), ("hinges", "charts"))
+#: The hinges with the compile option forced (``--compile-modes``): row name -> ``compact_mode``.
+COMPILE_MODES = {"compact": True, "unrolled": False}
+MODE_PAIRS = tuple((mode, "DOP853") for mode in COMPILE_MODES)
 SECTION = PEERS_SECTION
 
 
@@ -111,14 +116,18 @@ def reference(pb: Problem, fp_type: Any) -> np.ndarray:
 # --- the runners: each returns a callable() -> (hinges at ts, steps), warmed up --------------------------------
 
 
-def ours(pb: Problem, method: str, tol: float | None) -> Callable[[], tuple[np.ndarray, int]]:
+def ours(pb: Problem, method: str, tol: float | None,
+         compact_mode: bool | None = None) -> Callable[[], tuple[np.ndarray, int]]:
+    """``free_motion(method=...)``; ``compact_mode`` (hinges only) forced if not ``None``."""
+    options = {} if compact_mode is None else {"compact_mode": compact_mode}
+
     def run() -> tuple[np.ndarray, int]:
         m = free_motion(pb.chain, pb.h0, pb.w0, pb.T, method=method, save=SaveAt(t_eval=pb.ts, dense=False),
-                        precision=Precision(tol=tol))
+                        precision=Precision(tol=tol), **options)
         return m.hinges, m.n_steps
 
     free_motion(pb.chain, pb.h0, pb.w0, min(pb.T, 0.1), method=method,
-                precision=Precision(tol=tol))  # compile outside the timing
+                precision=Precision(tol=tol), **options)  # compile outside the timing
     return run
 
 
@@ -190,10 +199,15 @@ def peer_modules() -> dict[str, Any]:
 # --- measurement --------------------------------------------------------------------------------------------
 
 
-def measure(pb: Problem, ref: np.ndarray, peers: dict[str, Any], rounds: int, charts: bool) -> list[Row]:
-    """Every method at every tolerance, interleaved round by round; the fastest CPU time of ``rounds``."""
+def measure(pb: Problem, ref: np.ndarray, peers: dict[str, Any], rounds: int, charts: bool,
+            modes: bool = False) -> list[Row]:
+    """Every method at every tolerance, interleaved round by round; the fastest CPU time of ``rounds``.  ``modes``:
+    also the hinges with each of :data:`COMPILE_MODES` forced."""
     jobs: list[tuple[Row, Callable[[], tuple[np.ndarray, int]]]] = []
     jobs += [(Row("hinges", tol), ours(pb, "hinges", tol)) for tol in OUR_TOLS]
+    if modes:
+        jobs += [(Row(mode, tol), ours(pb, "hinges", tol, compact)) for mode, compact in COMPILE_MODES.items()
+                 for tol in OUR_TOLS]
     if charts:
         jobs += [(Row("charts", tol), ours(pb, "charts", tol)) for tol in CHART_TOLS]
     for name, build in (("DOP853", dop853), ("diffrax", diffrax_dopri8)):
@@ -256,7 +270,8 @@ def ratio_cell(rs: list[tuple[float, float, str]], missing: str = "") -> str:
 # --- the run ------------------------------------------------------------------------------------------------
 
 
-def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | None, chart_max_n: int) -> dict:
+def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | None, chart_max_n: int,
+         modes: bool = False) -> dict:
     peers = peer_modules()
     for name, mod in peers.items():
         if isinstance(mod, str):
@@ -270,8 +285,9 @@ def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | Non
         c0 = time.process_time()
         ref = reference(pb, fp_ref)
         ref_cpu = time.process_time() - c0
-        rows = measure(pb, ref, peers, rounds, charts=n <= chart_max_n)
-        results[n] = {"rows": rows, "ratios": {f"{a} vs {b}": ratios(rows, a, b) for a, b in PAIRS},
+        rows = measure(pb, ref, peers, rounds, charts=n <= chart_max_n, modes=modes)
+        pairs = PAIRS + (MODE_PAIRS if modes else ())
+        results[n] = {"rows": rows, "ratios": {f"{a} vs {b}": ratios(rows, a, b) for a, b in pairs},
                       "reference_cpu": ref_cpu}
         print(f"n = {n} (L = {pb.chain.L:g}; reference {ref_cpu:.1f} s CPU)")
         for r in rows:
@@ -279,7 +295,7 @@ def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | Non
             unit = "evaluations" if r.method == "DOP853" else "steps"
             print(f"    {r.method:8s} tol {knob:6s} {1e3 * r.cpu:9.2f} ms  {r.steps:7d} {unit:11s} error {r.error:.1e}")
         print("    " + ";  ".join(f"{k}: {ratio_cell(v)}" for k, v in results[n]["ratios"].items()), flush=True)
-    table = render(results, peers, T, rounds, quick)
+    table = render(results, peers, T, rounds, quick, modes)
     print("\n" + table)
     if markdown is not None:
         markdown.write_text(replace_section(markdown.read_text(), SECTION, table))
@@ -287,7 +303,8 @@ def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | Non
     return results
 
 
-def render(results: dict[int, dict], peers: dict[str, Any], T: float, rounds: int, quick: bool) -> str:
+def render(results: dict[int, dict], peers: dict[str, Any], T: float, rounds: int, quick: bool,
+           modes: bool = False) -> str:
     """The section: conditions in one paragraph, then the ratio table."""
     versions = [f"Python {platform.python_version()}", f"numpy {np.__version__}", f"scipy {scipy.__version__}",
                 f"heyoka {hy.__version__}"]
@@ -296,7 +313,7 @@ def render(results: dict[int, dict], peers: dict[str, Any], T: float, rounds: in
             versions += [f"{m.__name__} {m.__version__}" for m in (mod if isinstance(mod, tuple) else (mod,))]
     missing = {name: "peer not installed" for name, mod in peers.items() if isinstance(mod, str)}
     lines = [SECTION, "",
-             f"`python -m benchmarks.peers{' --quick' if quick else ''}`: every peer integrates the hinge method's own "
+             f"`python -m benchmarks.peers{' --quick' if quick else ''}{' --compile-modes' if modes else ''}`: every peer integrates the hinge method's own "
              "equations (transcribed from heyoka's decomposition of its compiled right-hand side), from its start and "
              "with its Baumgarte rate: scipy's DOP853 on a numba right-hand side, diffrax's Dopri8 on JAX for CPU "
              "(jit-compiled, compile excluded). Generic unit-energy start, L = n - 1.3, unit hinge masses, "
@@ -307,16 +324,20 @@ def render(results: dict[int, dict], peers: dict[str, Any], T: float, rounds: in
              "or the peer's loosest tolerance was already more accurate, a bound; `-`: an error not reached). "
              "Hinges and charts are `free_motion(method=...)` with their default steppers; the column \"hinges vs "
              "charts\" is the charts' time over the hinges' (at 1e-8 / 1e-10 / the charts' best error). "
+             + ("The columns \"compact\" and \"unrolled\" are the hinges with heyoka's compact mode forced on and "
+                "off (`compact_mode=True` / `False`) against DOP853. " if modes else "")
              + ", ".join(versions) + ".", "",
-             "| n | hinges vs DOP853 | hinges vs diffrax | charts vs DOP853 | hinges vs charts | best error: hinges / "
-             "charts / DOP853 / diffrax |",
-             "|---|---|---|---|---|---|"]
+             "| n | hinges vs DOP853 | hinges vs diffrax | charts vs DOP853 | hinges vs charts | "
+             + "".join(f"{mode} vs DOP853 | " for mode, _ in (MODE_PAIRS if modes else ()))
+             + "best error: hinges / charts / DOP853 / diffrax |",
+             "|---|---|---|---|---|---|" + "---|" * (len(MODE_PAIRS) if modes else 0)]
     for n, res in results.items():
         best = []
         for method in ("hinges", "charts", "DOP853", "diffrax"):
             errs = [r.error for r in res["rows"] if r.method == method]
             best.append(f"{min(errs):.0e}" if errs else "-")
-        cells = [ratio_cell(res["ratios"][f"{a} vs {b}"], missing.get(b, "")) for a, b in PAIRS]
+        cells = [ratio_cell(res["ratios"][f"{a} vs {b}"], missing.get(b, ""))
+                 for a, b in PAIRS + (MODE_PAIRS if modes else ())]
         lines.append(f"| {n} | " + " | ".join(cells) + " | " + " / ".join(best) + " |")
     return "\n".join(lines) + "\n"
 
@@ -328,7 +349,9 @@ if __name__ == "__main__":
     parser.add_argument("--T", type=float, default=20.0, help="horizon (default 20)")
     parser.add_argument("--rounds", type=int, default=None, help="interleaved rounds (default 5; quick 3)")
     parser.add_argument("--chart-max-n", type=int, default=10, help="largest n run with method='charts' (default 10)")
+    parser.add_argument("--compile-modes", action="store_true",
+                        help="also the hinges with compact_mode forced True and False, each against DOP853")
     parser.add_argument("--markdown", type=Path, default=None, help="write the table into this page (docs/benchmarks.md)")
     args = parser.parse_args()
     main(args.n or ([4, 6] if args.quick else [4, 6, 8, 10, 12]), args.T, args.rounds or (3 if args.quick else 5),
-         args.quick, args.markdown, args.chart_max_n)
+         args.quick, args.markdown, args.chart_max_n, args.compile_modes)
