@@ -14,8 +14,9 @@ this machine (ratios are the numbers to compare; absolute times are noise):
 4. the hinge method in float64 at its default tolerance: error against a
    long-double chart reference over T = 20; relative energy error and its
    log-log growth slope over T = 1e4; rod-length error;
-5. compact mode on and off, float64 and long double, n = 4..12: compile (CPU and wall) cold and from
-   heyoka's disk cache, and CPU time per Taylor step;
+5. compact mode on and off, float64 and long double, n = 4..12 (``--compact-n``, ``--compact-fp``): compile
+   (CPU and wall) cold and from heyoka's disk cache, CPU time per Taylor step, and in float64 an ensemble
+   (``free_motions``, each mode with its default batch: the SIMD width unrolled, twice that compact);
 6. constraint stabilisation: Baumgarte (rates 0.1, 1, 10), projection every
    10 time units, none -- wall time, rod-length drift and energy error over
    T = 1e4 at n = 4;
@@ -37,13 +38,15 @@ import numpy as np
 
 from linkage import Chain
 from linkage.constraints import ChainSystem, HingeConstraints
-from linkage.motion import free_motion
+from linkage.motion import free_motion, free_motions
 from linkage.time_factor import ChainTimeFactor
 from manifold.constrained import compiled_constrained
+from manifold.precision import is_double
 from manifold import Precision, SaveAt
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper
 
+from .ensemble_speed import starts
 from .study import methods as M
 from .study.experiments import errors, generic_start, reference, speed_ratio_at_equal_error
 
@@ -214,13 +217,16 @@ def float64_accuracy(T_short: float = 20.0, T_long: float = 1e4) -> dict:
     return out
 
 
-def compact_modes(ns: list[int], fp_types: tuple = (float, np.longdouble), T: float = 200.0, repeats: int = 3) -> dict:
+def compact_modes(ns: list[int], fp_types: tuple = (float, np.longdouble), T: float = 200.0, repeats: int = 3,
+                  ensemble: int = 32) -> dict:
     """Section 5: the hinge integrator compact and unrolled, per n and precision.
 
     Compiles go through a fresh heyoka disk cache (a temporary directory): "cold" is the first build (nothing
     cached, heyoka's memory cache and ours cleared; CPU and wall seconds), "cached" the same build once both
     memory caches are cleared again (what a new process pays once the code is on disk).  Then the CPU time of a
     T = ``T`` run (``SaveAt(dense=False)``, fastest of ``repeats``, the two modes interleaved) per Taylor step.
+    In float64 also ``free_motions`` of ``ensemble`` unit-speed starts over T = 20 in each mode (its default batch
+    size for that mode, serial backend; batch compiles excluded), the CPU time per trajectory.
     """
     out = {}
     old_path, old_enabled = hy.llvm_state.get_diskcache_path(), hy.llvm_state.get_diskcache_enabled()
@@ -254,6 +260,20 @@ def compact_modes(ns: list[int], fp_types: tuple = (float, np.longdouble), T: fl
                             row = out[(fp, n, compact)]
                             row["run"], row["steps"] = min(row["run"], time.process_time() - c0), m.n_steps
                     un, co = out[(fp, n, False)], out[(fp, n, True)]
+                    if is_double(fp) and ensemble:
+                        H, V = starts(chain, ensemble)
+                        for compact in (False, True):  # compile the batches outside the timing
+                            free_motions(chain, H[:1], V[:1], 0.01, compact_mode=compact, backend="serial")
+                        for row in (un, co):
+                            row["ensemble"] = np.inf
+                        for _ in range(repeats):
+                            for compact, row in ((False, un), (True, co)):
+                                c0 = time.process_time()
+                                free_motions(chain, H, V, 20.0, compact_mode=compact, backend="serial")
+                                row["ensemble"] = min(row["ensemble"], (time.process_time() - c0) / ensemble)
+                        print(f"  float64    n = {n:2d}: free_motions of {ensemble}, T = 20, per trajectory: unrolled "
+                              f"{1e3 * un['ensemble']:.3f} ms, compact {1e3 * co['ensemble']:.3f} ms, compact / "
+                              f"unrolled {co['ensemble'] / un['ensemble']:.2f}", flush=True)
                     print(f"  {np.dtype(fp).name:10s} n = {n:2d}: compile CPU unrolled {un['compile_cpu']:6.2f} s cold "
                           f"(wall {un['compile_wall']:6.2f} s), {un['cached_cpu']:5.2f} s cached; compact "
                           f"{co['compile_cpu']:5.2f} s cold, {co['cached_cpu']:5.2f} s cached; T = {T:g}: unrolled "
@@ -287,7 +307,8 @@ def stabilisations(T: float = 1e4) -> dict:
     return out
 
 
-def main(quick: bool = False, sections: str = "1234567") -> dict:
+def main(quick: bool = False, sections: str = "1234567", compact_n: list[int] | None = None,
+         compact_fp: tuple[str, ...] = ("float64", "longdouble")) -> dict:
     ns = [4, 6] if quick else [4, 6, 8, 10]
     res: dict = {}
     if "1" in sections:
@@ -304,7 +325,9 @@ def main(quick: bool = False, sections: str = "1234567") -> dict:
         res["accuracy"] = float64_accuracy(T_long=1e3 if quick else 1e4)
     if "5" in sections:
         print("5. compact mode")
-        res["compact"] = compact_modes([4] if quick else [4, 6, 8, 10, 12])
+        fps = {"float64": float, "longdouble": np.longdouble}
+        res["compact"] = compact_modes(compact_n or ([4] if quick else [4, 6, 8, 10, 12]),
+                                       tuple(fps[name] for name in compact_fp))
     if "6" in sections:
         print(f"6. stabilisation, n = 4, T = {1e3 if quick else 1e4:g}")
         res["stabilisation"] = stabilisations(1e3 if quick else 1e4)
@@ -318,5 +341,9 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(prog="python -m benchmarks.method_speed", description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="n = 4, 6 and short horizons (minutes)")
     parser.add_argument("--sections", default="1234567", help="which sections to run, e.g. 13 (default all)")
+    parser.add_argument("--compact-n", type=int, nargs="+", default=None,
+                        help="section 5: chain sizes (default 4 6 8 10 12; quick 4)")
+    parser.add_argument("--compact-fp", nargs="+", choices=("float64", "longdouble"), default=("float64", "longdouble"),
+                        help="section 5: precisions (default both)")
     args = parser.parse_args()
-    main(args.quick, args.sections)
+    main(args.quick, args.sections, args.compact_n, tuple(args.compact_fp))

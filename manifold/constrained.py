@@ -71,8 +71,10 @@ __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "Cons
 Expr: TypeAlias = hy.expression
 #: How drift off the constraints is held back (see the module docstring).
 STABILISATIONS = ("baumgarte", "projection", "none")
-#: Largest ambient dimension integrated with unrolled (non-compact) code by default; see ``solve_constrained``.
-UNROLL_MAX_DIM = 8
+#: Largest ambient dimension integrated with unrolled (non-compact) code by default, in float64 (``N = 14``: a chain
+#: of 8 rods) and in long double (``N = 8``: 5 rods), whose unrolled code compiles 3-4x slower; see
+#: :func:`default_compact_mode`.
+UNROLL_MAX_DIM = {"float64": 14, "long double": 8}
 #: A start farther than this from ``c = 0`` (``max_k |c_k|``) is refused rather than moved, unless a constraint's
 #: rounding floor (:meth:`ConstrainedGeometry.floors`) times :data:`START_ROUNDING_MARGIN` is larger.
 START_CONSTRAINT_TOLERANCE = 1e-9
@@ -763,10 +765,22 @@ def damping_rate(scale: float, rate: float, energy: Any, direction: float) -> An
 
 
 def default_compact_mode(system: ConstrainedSystem, fp_type: Any) -> bool:
-    """heyoka's compact mode by default: off (unrolled code) for float64 and long double up to ``N =
-    UNROLL_MAX_DIM``, on beyond and for software floating types (see :func:`solve_constrained`)."""
-    hardware = is_double(fp_type) or fp_type is np.longdouble
-    return not (hardware and system.ambient_dim <= UNROLL_MAX_DIM)
+    """heyoka's compact mode by default, chosen by measurement: off (unrolled code) up to ``N =``
+    :data:`UNROLL_MAX_DIM` (14 in float64, 8 in long double), on beyond and for software floating types.
+
+    Unrolled code steps 1.5-2.2x faster (float64, n = 4..12; long double 1.8-2.0x) and its cold compile grows
+    about linearly with ``n``: in float64 5-8 s of CPU at n = 6 and 9-14 s at n = 8 (a SIMD batch alike),
+    paid once per machine, since heyoka keeps the code in its disk cache and loads it from there in 0.05-0.25 s;
+    beyond n = 8 it costs 12-22 s for the same gain.  Long double compiles 3-5x slower (12-13 s at n = 4, 30 s
+    at n = 6), so it unrolls only to n = 5.  In real128 and multiprecision the software arithmetic dominates the
+    step and unrolled code only costs compile time (at 150 bits it exhausted memory).  docs/methods.md,
+    "Compile options", has the measurements.
+    """
+    if is_double(fp_type):
+        return system.ambient_dim > UNROLL_MAX_DIM["float64"]
+    if fp_type is np.longdouble:
+        return system.ambient_dim > UNROLL_MAX_DIM["long double"]
+    return True
 
 
 def constraint_bound(n_steps: int, eps: float) -> float:
@@ -863,16 +877,13 @@ def solve_constrained(
     projection_interval
         Time between projections for ``"projection"``, ``> 0``.
     compact_mode
-        heyoka's compact mode; ``None`` (default) chooses by measurement
-        (``benchmarks/method_speed.py``, section 5; docs/methods.md, "Compile options"): unrolled code for
-        float64 and long double up to ``N = UNROLL_MAX_DIM`` (a chain of 5 rods), where it steps 1.5-2x
-        faster and its cold compile (2-3 s of CPU at n = 4 in float64, 12-13 s in long double; paid once:
-        heyoka caches it on disk, and loads it from there in 0.05 s) is tolerable; compact beyond (an unrolled
-        n = 8 chain took 9-10 s of CPU to compile cold for a 1.7-2.2x faster step) and for
-        real128 and :class:`~manifold.precision.MultiPrecision`, whose
-        software arithmetic dominates the step (unrolled code at 150 bits
-        exhausted memory), and with terms carried (``carry``; a Jacobi field
-        at n = 4 took 52 s to compile unrolled, 1.1 s compact).
+        heyoka's compact mode; ``None`` (default) chooses by measurement (:func:`default_compact_mode`;
+        docs/methods.md, "Compile options"): unrolled code up to ``N = 14`` (a chain of 8 rods) in float64 and
+        ``N = 8`` (5 rods) in long double, where it steps 1.5-2.2x faster for a cold compile of 2-14 s of CPU
+        in float64 (12-13 s in long double at n = 4) paid once per machine (heyoka keeps it in its disk cache);
+        compact beyond, for real128 and :class:`~manifold.precision.MultiPrecision`, whose software arithmetic
+        dominates the step, and with terms carried (``carry``; a Jacobi field at n = 4 took 52 s to compile
+        unrolled, 1.1 s compact).
     save
         :class:`~manifold.options.SaveAt` ``(t_eval, dense)``: times (within ``[0, t_final]``, in integration
         order) recorded in ``sol.points`` and ``sol.velocities``, and whether to keep the Taylor coefficients
