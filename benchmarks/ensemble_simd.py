@@ -2,7 +2,7 @@
 
 Run ``python -m benchmarks.ensemble_simd [--n 4 8] [--count 64] [--T 20] [--rounds 5]``, or
 ``--widths 4 6 8 10`` for ``free_motions``' CPU time against the batch size (1 lane, and 1, 2 and 4 times
-the SIMD width; compact mode, and unrolled code where that is the default, n <= 5).
+the SIMD width; compact mode, and unrolled code where that is the default, n <= 8 in float64).
 
 For each ``n``: ``--count`` unit-speed starts of the chain ``L = n - 1.4`` over ``T``, hinge
 method, float64, default tolerance and compile options, no dense output.  Rows:
@@ -187,11 +187,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--widths", type=int, nargs="*", default=None, metavar="N",
                     help="instead: free_motions' CPU time against the batch size, for these n (compact mode; "
-                         "unrolled too where n <= 5)")
+                         "unrolled too where that is the default, n <= 8)")
     args = ap.parse_args(argv)
     if args.widths is not None:
         for n in args.widths:
-            for compact in ((True, False) if n <= 5 else (True,)):
+            unrolled_default = not default_compact_mode(ChainSystem(Chain(n, n - 1.4)), float)
+            for compact in ((True, False) if unrolled_default else (True,)):
                 widths(n, args.count, args.T, args.rounds, compact)
         return
     print(f"heyoka {hy.__version__}, {hy.recommended_simd_size()} SIMD lanes; CPU time per process, interleaved, "
