@@ -183,13 +183,15 @@ def test_static_files_stay_in_their_folder(client: TestClient) -> None:
 def test_space_of_four_rods_is_a_sphere_of_configurations(client: TestClient) -> None:
     got = client.post("/api/space", json={"lengths": 4, "L": 3.0, "resolution": 8}).json()
     sphere = got["sphere"]
-    vertices, hinges = np.array(sphere["vertices"]), complex_of(sphere["hinges"])
+    # vertex k of the mesh is the configuration in row k of the torus fields
+    vertices, hinges = np.array(sphere["vertices"]), complex_of(got["torus"]["hinges"])
+    assert len(hinges) == len(vertices) == 9 * 17
     assert np.allclose(np.linalg.norm(vertices, axis=1), 1.0)
     assert np.max(CHAIN.closure_residual(hinges)) < 1e-9
     # the pose of a vertex is its configuration (the picture's inverse)
-    k = 40
-    pose = client.post("/api/pose", json={"lengths": 4, "L": 3.0, "sphere": vertices[k].tolist()}).json()
-    assert np.allclose(complex_of(pose["hinges"]), hinges[k], atol=1e-9)
+    for k in (40, 100):
+        pose = client.post("/api/pose", json={"lengths": 4, "L": 3.0, "sphere": vertices[k].tolist()}).json()
+        assert np.allclose(complex_of(pose["hinges"]), hinges[k], atol=1e-9)
     # Gauss-Bonnet: the curvature integrates to 4 pi over the sphere. Area elements from the metric's own
     # Gram determinant on the mesh would repeat the library; instead the mean of K over the round picture must
     # be positive and K finite
@@ -200,12 +202,53 @@ def test_space_of_four_rods_is_a_sphere_of_configurations(client: TestClient) ->
     assert got["torus"]["name"].startswith("the configuration sphere")
 
 
+def numeric_fields(payload: object, path: str = "") -> dict[str, np.ndarray]:
+    """Every list of numbers in a JSON payload, by its path, as an array of one row per entry of its first axis."""
+    if isinstance(payload, dict):
+        return {k: v for key, value in payload.items() for k, v in numeric_fields(value, f"{path}.{key}").items()}
+    if isinstance(payload, list) and payload and not isinstance(payload[0], (str, dict)):
+        a = np.array(payload, dtype=float)
+        return {path: a.reshape(len(a), -1)}
+    return {}
+
+
+@pytest.mark.parametrize("lengths,L", [(4, 3.0), (3, 2.0), (4, 1.0)])
+def test_space_sends_each_column_once(client: TestClient, lengths: int, L: float) -> None:
+    """No column of numbers (one number per configuration: a coordinate of a hinge, a rod angle, a point of the
+    picture) is sent twice in the payload of /api/space, in two fields or twice in one."""
+    got = client.post("/api/space", json={"lengths": lengths, "L": L, "resolution": 8}).json()
+    columns = [(f"{path}[:, {j}]", a[:, j]) for path, a in numeric_fields(got).items() if len(a) > 8
+               for j in range(a.shape[1])]
+    assert len(columns) >= 9
+    for i, (name, column) in enumerate(columns):
+        for other, again in columns[i + 1:]:
+            assert not np.array_equal(column, again), f"{name} and {other} carry the same numbers"
+
+
+def test_space_of_four_rods_sends_what_the_page_draws_per_vertex(client: TestClient) -> None:
+    """Per vertex of the sphere the page needs its point of the picture (3 numbers), three colourings (3), its
+    rod angles in the cube (3), its configuration (3 hinges: 6) and about two triangles (6 indices): at most 21
+    numbers a vertex, whatever the resolution."""
+    for resolution in (8, 16):
+        got = client.post("/api/space", json={"lengths": 4, "L": 3.0, "resolution": resolution}).json()
+        vertices = len(got["sphere"]["vertices"])
+        numbers = sum(a.size for a in numeric_fields(got).values())
+        assert numbers <= 21 * vertices, f"{numbers / vertices:.1f} numbers a vertex at resolution {resolution}"
+
+
 @pytest.mark.parametrize("lengths,L,kind", [(3, 2.0, "circle"), (4, 1.0, "projection"), (5, 4.0, "projection")])
 def test_space_of_other_chains_is_named(client: TestClient, lengths: int, L: float, kind: str) -> None:
     got = client.post("/api/space", json={"lengths": lengths, "L": L}).json()
     assert got["sphere"] is None
     assert kind in got["torus"]["name"]
     assert np.all(np.abs(got["torus"]["angles"]) <= np.pi)
+    chain = Chain(lengths, L)
+    hinges = complex_of(got["torus"]["hinges"])
+    assert np.allclose(chain.angles(hinges)[:, :3], got["torus"]["angles"], atol=1e-12)
+    if kind == "circle":  # point k of chart 0's circle is the configuration in row k of the torus fields
+        chart0 = chain.atlas().charts[0]
+        assert np.allclose(chart0.sphere_point(chart0.get_parameters(chain.to_point(hinges))),
+                           got["circle"]["points"], atol=1e-9)
 
 
 def wrapped(x: np.ndarray) -> np.ndarray:

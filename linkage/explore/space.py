@@ -46,9 +46,9 @@ def largest_stiffness(chain: Chain, hinges: NDArray) -> NDArray:
                             for s in turns]), axis=0)
 
 
-def _sphere_mesh(chain: Chain, resolution: int) -> dict[str, Any]:
-    """Latitude-longitude mesh of chart 0's sphere ``S^2`` (``n = 4``): vertices, triangles, configurations, angles,
-    and per vertex the Gaussian curvature, the bending ``|II|^2`` and the largest stiffness."""
+def _sphere_mesh(chain: Chain, resolution: int) -> tuple[dict[str, Any], NDArray]:
+    """Latitude-longitude mesh of chart 0's sphere ``S^2`` (``n = 4``): vertices, triangles, and per vertex the
+    Gaussian curvature, the bending ``|II|^2`` and the largest stiffness; and the vertices' configurations."""
     chart0 = chain.atlas().charts[0]
     lat = np.linspace(-np.pi / 2, np.pi / 2, resolution + 1)
     lon = np.linspace(-np.pi, np.pi, 2 * resolution + 1)
@@ -61,9 +61,9 @@ def _sphere_mesh(chain: Chain, resolution: int) -> dict[str, Any]:
     quads = [(i * cols + j, (i + 1) * cols + j, (i + 1) * cols + j + 1, i * cols + j + 1)
              for i in range(resolution) for j in range(cols - 1)]
     faces = [[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads]
-    return {"vertices": chart0.sphere_point(a).tolist(), "faces": faces, "hinges": as_pairs(hinges),
-            "angles": chain.angles(hinges)[:, :3].tolist(), "curvature": np.asarray(curvature).tolist(),
+    mesh = {"vertices": chart0.sphere_point(a).tolist(), "faces": faces, "curvature": np.asarray(curvature).tolist(),
             "bending": np.asarray(bending).tolist(), "stiffness": largest_stiffness(chain, hinges).tolist()}
+    return mesh, hinges
 
 
 def _circle(chain: Chain, resolution: int) -> tuple[NDArray, NDArray]:
@@ -79,11 +79,14 @@ def space_payload(chain: Chain, resolution: int = 24, samples: int = 3000, seed:
     Returns
     -------
     dict
-        ``n``, ``topology`` (:meth:`linkage.topology.Topology.summary`), ``hasAtlas``, ``chartIds``;
-        ``sphere`` (``n = 4`` with an atlas: the mesh, else ``None``); ``circle`` (``n = 3`` with an atlas:
-        points of the unit circle and their rod angles, else ``None``); ``torus``: ``{angles, hinges, name}``,
-        rod angles of configurations in the cube, the configurations, and the name of the projection; ``start``: one configuration of the space
-        (chart 0's parameters all 0.4 where there is an atlas, else the first sample) to pose the chain in.
+        ``n``, ``lengths``, ``L``, ``topology`` (:meth:`linkage.topology.Topology.summary`), ``hasAtlas``,
+        ``chartIds``; ``torus``: ``{angles, hinges, name}``, the configurations of the space that are drawn,
+        their rod angles in the cube, and the name of the projection; ``sphere`` (``n = 4`` with an atlas,
+        else ``None``): the mesh ``{vertices, faces, curvature, bending, stiffness}`` whose vertex ``k`` is the
+        configuration in row ``k`` of ``torus``; ``circle`` (``n = 3`` with an atlas, else ``None``):
+        ``{points}`` of the unit circle, point ``k`` the configuration in row ``k`` of ``torus``; ``start``: one
+        configuration of the space (chart 0's parameters all 0.4 where there is an atlas, else the first sample)
+        to pose the chain in.  Each configuration is sent once, in ``torus``.
     """
     topology = chain.topology()
     out: dict[str, Any] = {"n": chain.n, "lengths": chain.lengths.tolist(), "L": chain.L,
@@ -91,23 +94,19 @@ def space_payload(chain: Chain, resolution: int = 24, samples: int = 3000, seed:
                            "chartIds": [str(c) for c in chain.atlas().ids] if chain.has_atlas else [],
                            "sphere": None, "circle": None}
     if chain.n == 4 and chain.has_atlas:
-        out["sphere"] = _sphere_mesh(chain, resolution)
-        angles, pairs = np.array(out["sphere"]["angles"]), np.array(out["sphere"]["hinges"])
-        hinges = pairs[..., 0] + 1j * pairs[..., 1]
+        out["sphere"], hinges = _sphere_mesh(chain, resolution)
         name = "the configuration sphere in the cube of rod angles (theta_1, theta_2, theta_3)"
     elif chain.n == 3 and chain.has_atlas:
         points, hinges = _circle(chain, resolution)
-        angles = chain.angles(hinges)
-        out["circle"] = {"points": points.tolist(), "angles": angles[:, :2].tolist()}
+        out["circle"] = {"points": points.tolist()}
         name = "the configuration circle in the torus of rod angles (theta_1, theta_2)"
     else:
         # hit-and-run in the diagonal polytope takes ~15 (n-2)^2 steps per sample: fewer samples for long chains
         size = max(200, min(samples, samples * 36 // (chain.n - 2) ** 2))
         hinges = chain.diagonal_space().sample(size, np.random.default_rng(seed)).hinges
-        angles = chain.angles(hinges)
         name = (f"projection of {size} configurations sampled uniformly in the diagonal coordinates onto the rod "
                 f"angles ({'theta_1, theta_2' if chain.n == 3 else 'theta_1, theta_2, theta_3'})")
-    out["torus"] = {"angles": np.asarray(angles)[:, :3].tolist(), "hinges": as_pairs(np.asarray(hinges)), "name": name}
+    out["torus"] = {"angles": chain.angles(hinges)[:, :3].tolist(), "hinges": as_pairs(hinges), "name": name}
     start = chain.atlas().charts[0].hinges(np.full(chain.n - 2, 0.4)) if chain.has_atlas else hinges[0]
     out["start"] = as_pairs(start)
     return out
