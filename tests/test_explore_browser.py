@@ -326,3 +326,70 @@ def test_three_rods_take_drags_on_the_torus_and_on_the_circle(page: Any) -> None
     page.click("#c-apply")
     wait_until(page, f"{explorer}.space().n === 4")
     page.evaluate(f"{explorer}.setLength(3.0)")
+
+
+
+def assert_inside(box: dict, panel: dict, what: str) -> None:
+    """``box`` lies within ``panel`` (boxes as Playwright's bounding_box gives them, page pixels; half a pixel for
+    rounding)."""
+    assert panel["x"] - 0.5 <= box["x"] and box["x"] + box["width"] <= panel["x"] + panel["width"] + 0.5, (what, box)
+    assert panel["y"] - 0.5 <= box["y"] and box["y"] + box["height"] <= panel["y"] + panel["height"] + 0.5, (what, box)
+
+
+#: scrolls the side panel up or down to ``el`` (where the panel is taller than the window), never sideways: what
+#: does not fit across the panel must not be scrolled into sight
+SCROLL_TO = "el => { el.scrollIntoView({ block: 'nearest' }); el.closest('#controls').scrollLeft = 0; }"
+#: per control of the side panel, scrolled to: its box, the panel's, its text and whether its text is cut
+#: (measured in one call: on a loaded machine each call waits for the page's next frame)
+MEASURE_CONTROLS = f"""panel => [...panel.querySelectorAll('label > input, label > select, output, #readouts b')].map(el => {{
+  ({SCROLL_TO})(el);
+  const box = (e) => {{ const r = e.getBoundingClientRect(); return {{ x: r.x, y: r.y, width: r.width, height: r.height }}; }};
+  return {{ id: el.id, box: box(el), panel: box(panel), text: el.textContent, cut: el.scrollWidth > el.clientWidth }};
+}})"""
+
+
+def assert_controls_fit(tab: Any, values: dict[str, str]) -> None:
+    """Every control, slider value and readout of the side panel lies inside the panel, the panel inside the
+    window; the slider values show ``values`` (id: text), and no value or readout is cut (a text field scrolls
+    its own text)."""
+    panel = tab.locator("#controls")
+    assert_inside(panel.bounding_box(), {"x": 0, "y": 0, **tab.viewport_size}, "the side panel")
+    controls = panel.evaluate(MEASURE_CONTROLS)
+    assert len(controls) == 17  # 2 sliders and their 2 values, 2 text fields, 4 lists, 7 readouts
+    for c in controls:
+        assert_inside(c["box"], c["panel"], c["id"])
+        assert not c["cut"] or c["id"] in ("c-lengths", "c-masses"), f"{c['id']}: its text {c['text']!r} is cut"
+    assert {c["id"]: c["text"] for c in controls if c["id"] in values} == values
+    for value in values:  # the same for the slider values as Playwright sees them
+        tab.locator(f"#{value}").evaluate(SCROLL_TO)
+        assert_inside(tab.locator(f"#{value}").bounding_box(), panel.bounding_box(), value)
+    assert panel.evaluate("el => el.scrollWidth <= el.clientWidth"), "the side panel scrolls sideways"
+
+
+def test_the_side_panel_shows_each_value_whole(page: Any) -> None:
+    """At the default window and a narrow one the sliders' values, the fields and the readouts stay inside the
+    side panel: as the page opens, and with long values (rods of 10.125, 20.25, 30.5 and 25.75, masses with
+    many digits, L = 55.123456 and a speed of 0.1 + 0.2, the values shown to 4 significant digits)."""
+    default, narrow = {"width": 1400, "height": 720}, {"width": 640, "height": 480}
+    context = page.context.browser.new_context(viewport=default)
+    tab = context.new_page()
+    errors: list[str] = []
+    tab.on("pageerror", lambda err: errors.append(str(err)))
+    tab.goto(page.url)
+    tab.evaluate("window.linkageExplorer.ready")
+    for size in (default, narrow):
+        tab.set_viewport_size(size)
+        assert_controls_fit(tab, {"c-L-out": "3", "c-speed-out": "1"})
+    tab.fill("#c-lengths", "10.125,20.25,30.5,25.75")
+    tab.fill("#c-masses", "1.234567891,2.345678912,3.456789123")
+    tab.click("#c-apply")
+    tab.wait_for_function("window.linkageExplorer.space().builds === 2", timeout=60_000, polling=50)
+    tab.evaluate("window.linkageExplorer.setLength(55.123456)")
+    tab.evaluate("window.linkageExplorer.setSpeed(0.1 + 0.2)")
+    for size in (narrow, default):
+        tab.set_viewport_size(size)
+        assert_controls_fit(tab, {"c-L-out": "55.12", "c-speed-out": "0.3"})
+    # the slider reaches L: its range is the rods' total length, 86.625
+    assert tab.input_value("#c-L") == "55.12" and tab.get_attribute("#c-L", "max") == "86.625"
+    context.close()
+    assert errors == []

@@ -96,6 +96,9 @@ function stop() {
   if (S.ws && S.ws.readyState === WebSocket.OPEN) S.ws.send(JSON.stringify({ type: 'stop' }));
 }
 
+// a slider's value with at most 4 significant digits: L = 2.3456789 shows as 2.346, a speed of 0.1 + 0.2 as 0.3
+function sliderText(x) { return String(Number(Number(x).toPrecision(4))); }
+
 function showError(text) { S.error = text; $('error').textContent = text; $('error').hidden = false; }
 function hideError() { S.error = null; $('error').hidden = true; }
 
@@ -475,14 +478,15 @@ async function rebuild() {
   if (!S.space.hasAtlas && $('c-method').value === 'charts') { $('c-method').value = 'hinges'; S.methodForced = true; }
   if (S.space.hasAtlas && S.methodForced) { $('c-method').value = 'charts'; S.methodForced = false; }
   if (S.space.n === 3) spaceView.camera.position.set(0, 0, 3.4);  // a plane picture: seen from above
-  $('c-L').value = S.chain.L; $('c-L-out').textContent = S.chain.L.toFixed(2);
+  $('c-L').max = S.space.lengths.reduce((a, b) => a + b, 0);  // L ranges up to the rods' total length
+  $('c-L').value = S.chain.L; $('c-L-out').textContent = sliderText(S.chain.L);
   resize(chainView, fitChain); buildChain(); buildSpace(); drawChain(S.pose);
   return S.space;
 }
 
 async function setLength(L) { S.chain.L = L; return rebuild(); }
 
-$('c-L').addEventListener('input', () => { $('c-L-out').textContent = Number($('c-L').value).toFixed(2); });
+$('c-L').addEventListener('input', () => { $('c-L-out').textContent = sliderText($('c-L').value); });
 $('c-L').addEventListener('change', () => setLength(Number($('c-L').value)).catch(() => {}));
 $('c-apply').addEventListener('click', () => {
   S.chain.lengths = readLengths($('c-lengths').value);
@@ -490,7 +494,7 @@ $('c-apply').addEventListener('click', () => {
   S.chain.masses = masses.length === 1 ? masses[0] : masses;
   rebuild().catch(() => {});
 });
-$('c-speed').addEventListener('input', () => { S.speed = Number($('c-speed').value); $('c-speed-out').textContent = S.speed; });
+$('c-speed').addEventListener('input', () => { S.speed = Number($('c-speed').value); $('c-speed-out').textContent = sliderText(S.speed); });
 $('c-pause').addEventListener('click', () => { S.paused = !S.paused; $('c-pause').textContent = S.paused ? 'play' : 'pause'; });
 $('c-step').addEventListener('click', () => { S.paused = true; $('c-pause').textContent = 'play'; stepOne(); });
 $('c-view').addEventListener('change', () => { showView(); drawn = 0; clearPaths(); extendPaths(); });
@@ -598,7 +602,7 @@ window.linkageExplorer = {
   setLength,
   pause() { S.paused = true; $('c-pause').textContent = 'play'; return this.state(); },
   resume() { S.paused = false; $('c-pause').textContent = 'pause'; return this.state(); },
-  setSpeed(v) { S.speed = v; $('c-speed').value = v; $('c-speed-out').textContent = v; },
+  setSpeed(v) { S.speed = v; $('c-speed').value = v; $('c-speed-out').textContent = sliderText(v); },
   // a test driving the mouse from another process sets a longer hold: its own latency under load is no rest
   setHoldMs(ms) { const old = holdMs; holdMs = ms; return old; },
   hingeScreen: screenOfHinge,
@@ -621,8 +625,6 @@ async function start() {
   const config = await (await fetch('/api/config')).json();
   S.chain = { lengths: config.lengths, L: config.L, masses: 1 };
   $('c-lengths').value = Array.isArray(config.lengths) ? config.lengths.join(',') : String(config.lengths);
-  const n = Array.isArray(config.lengths) ? config.lengths.length : config.lengths;
-  $('c-L').max = Array.isArray(config.lengths) ? config.lengths.reduce((a, b) => a + b, 0) : n;
   resize(spaceView, (a) => { spaceView.camera.aspect = a; spaceView.camera.updateProjectionMatrix(); });
   connect();
   await rebuild();
