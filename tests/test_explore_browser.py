@@ -4,7 +4,8 @@ The page is loaded from a real server; a hinge is dragged and flicked with the m
 (``window.linkageExplorer.state()``) must be free_motion's motion from the start the page launched, sample for
 sample over T = 10; so must a flick in the cube of rod angles, after a drag there that poses the chain under
 the pointer (and, for three rods, on the torus T^2 and on chart 0's circle).  A launch over chart 0's pole must show a switch; a new L must rebuild the space; a bad launch
-must show its error on the page.  The screenshots in docs/figures are taken here (``LINKAGE_SCREENSHOTS=1``).
+must show its error on the page; the side panel's controls, slider values and readouts must lie inside it at the
+default window and a narrow one.  The screenshots in docs/figures are taken here (``LINKAGE_SCREENSHOTS=1``).
 
 Without Chromium (``/usr/bin/chromium``, Debian's package) these tests skip and say so, except in CI (the
 environment variable ``CI`` set), where a missing browser is a failure.
