@@ -124,7 +124,9 @@ def test_drag_and_flick_plays_free_motion(page: Any, figures: Path) -> None:
             page.mouse.move(hinge["x"] + 4 * k, hinge["y"] - 6 * k)
             page.wait_for_timeout(15)
         page.mouse.up()
-        wait_until(page, f"{explorer}.state().running", timeout_ms=600_000)
+        # paused by the page itself as it starts, until the reference is computed (at play speed 2 the window
+        # lasts 5 s, which a loaded machine can spend on the reference alone)
+        wait_until(page, f"{explorer}.state().running && {explorer}.pause()", timeout_ms=600_000)
     finally:
         page.evaluate(f"{explorer}.setHoldMs({hold})")
     launched = page.evaluate(f"{explorer}.lastLaunch()")
@@ -132,6 +134,7 @@ def test_drag_and_flick_plays_free_motion(page: Any, figures: Path) -> None:
     assert np.max(CHAIN.closure_residual(h0)) < 1e-12
     reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts",
                             save=SaveAt(t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1)))
+    page.evaluate(f"{explorer}.resume()")
     seen = play_and_compare(page, reference, until=WINDOW)
     page.evaluate(f"{explorer}.pause()")
     page.screenshot(path=str(figures / "explorer.png"))
@@ -208,13 +211,15 @@ def test_a_drag_in_the_cube_of_rod_angles_poses_the_chain_and_a_flick_launches(p
         page.mouse.move(s1["x"] + k / 12 * (s0["x"] - s1["x"]), s1["y"] + k / 12 * (s0["y"] - s1["y"]))
         page.wait_for_timeout(15)
     page.mouse.up()
-    wait_until(page, f"{explorer}.state().running || {explorer}.error() !== null")
+    # paused by the page itself as it starts, until the reference is computed (see the test above)
+    wait_until(page, f"({explorer}.state().running && {explorer}.pause()) || {explorer}.error() !== null")
     assert page.evaluate(f"{explorer}.error()") is None
     launched = page.evaluate(f"{explorer}.lastLaunch()")
     h0, v0 = complex_of(launched["hinges"]), complex_of(launched["velocity"])
     assert np.max(CHAIN.closure_residual(h0)) <= 1e-12 and CHAIN.kinetic_energy(v0) > 0
     reference = free_motion(CHAIN, h0, v0, WINDOW, method="charts",
                             save=SaveAt(t_eval=np.linspace(0, WINDOW, int(WINDOW * RATE) + 1)))
+    page.evaluate(f"{explorer}.resume()")
     seen_states = play_and_compare(page, reference, until=WINDOW)
     assert len({s["t"] for s in seen_states}) >= 5
     page.evaluate(f"{explorer}.pause()")
@@ -340,57 +345,64 @@ def assert_inside(box: dict, panel: dict, what: str) -> None:
 #: scrolls the side panel up or down to ``el`` (where the panel is taller than the window), never sideways: what
 #: does not fit across the panel must not be scrolled into sight
 SCROLL_TO = "el => { el.scrollIntoView({ block: 'nearest' }); el.closest('#controls').scrollLeft = 0; }"
-#: per control of the side panel, scrolled to: its box, the panel's, its text and whether its text is cut
-#: (measured in one call: on a loaded machine each call waits for the page's next frame)
-MEASURE_CONTROLS = f"""panel => [...panel.querySelectorAll('label > input, label > select, output, #readouts b')].map(el => {{
-  ({SCROLL_TO})(el);
+#: the side panel's box, whether it scrolls sideways, and per control scrolled to: its box, its text and whether
+#: its text is cut (in one call: on a loaded machine each call waits for the page's next frame)
+MEASURE_CONTROLS = f"""panel => {{
   const box = (e) => {{ const r = e.getBoundingClientRect(); return {{ x: r.x, y: r.y, width: r.width, height: r.height }}; }};
-  return {{ id: el.id, box: box(el), panel: box(panel), text: el.textContent, cut: el.scrollWidth > el.clientWidth }};
-}})"""
+  const controls = [...panel.querySelectorAll('label > input, label > select, output, #readouts b')].map((el) => {{
+    ({SCROLL_TO})(el);
+    return {{ id: el.id, box: box(el), text: el.textContent, cut: el.scrollWidth > el.clientWidth }};
+  }});
+  return {{ panel: box(panel), sideways: panel.scrollWidth > panel.clientWidth, controls }};
+}}"""
 
 
 def assert_controls_fit(tab: Any, values: dict[str, str]) -> None:
     """Every control, slider value and readout of the side panel lies inside the panel, the panel inside the
-    window; the slider values show ``values`` (id: text), and no value or readout is cut (a text field scrolls
-    its own text)."""
-    panel = tab.locator("#controls")
-    assert_inside(panel.bounding_box(), {"x": 0, "y": 0, **tab.viewport_size}, "the side panel")
-    controls = panel.evaluate(MEASURE_CONTROLS)
+    window and not scrolling sideways; the slider values show ``values`` (id: text), and no value or readout is
+    cut (a text field scrolls its own text)."""
+    measured = tab.locator("#controls").evaluate(MEASURE_CONTROLS)
+    panel, controls = measured["panel"], measured["controls"]
+    assert_inside(panel, {"x": 0, "y": 0, **tab.viewport_size}, "the side panel")
+    assert not measured["sideways"], "the side panel scrolls sideways"
     assert len(controls) == 17  # 2 sliders and their 2 values, 2 text fields, 4 lists, 7 readouts
     for c in controls:
-        assert_inside(c["box"], c["panel"], c["id"])
+        assert_inside(c["box"], panel, c["id"])
         assert not c["cut"] or c["id"] in ("c-lengths", "c-masses"), f"{c['id']}: its text {c['text']!r} is cut"
     assert {c["id"]: c["text"] for c in controls if c["id"] in values} == values
     for value in values:  # the same for the slider values as Playwright sees them
         tab.locator(f"#{value}").evaluate(SCROLL_TO)
-        assert_inside(tab.locator(f"#{value}").bounding_box(), panel.bounding_box(), value)
-    assert panel.evaluate("el => el.scrollWidth <= el.clientWidth"), "the side panel scrolls sideways"
+        assert_inside(tab.locator(f"#{value}").bounding_box(), panel, value)
+
+
+def rebuild_with(page: Any, lengths: str, masses: str) -> None:
+    """Type rod lengths and hinge masses into the side panel and rebuild the space with them."""
+    builds = page.evaluate("window.linkageExplorer.space().builds")
+    page.fill("#c-lengths", lengths)
+    page.fill("#c-masses", masses)
+    page.click("#c-apply")
+    wait_until(page, f"window.linkageExplorer.space().builds > {builds}")
 
 
 def test_the_side_panel_shows_each_value_whole(page: Any) -> None:
     """At the default window and a narrow one the sliders' values, the fields and the readouts stay inside the
     side panel: as the page opens, and with long values (rods of 10.125, 20.25, 30.5 and 25.75, masses with
     many digits, L = 55.123456 and a speed of 0.1 + 0.2, the values shown to 4 significant digits)."""
-    default, narrow = {"width": 1400, "height": 720}, {"width": 640, "height": 480}
-    context = page.context.browser.new_context(viewport=default)
-    tab = context.new_page()
-    errors: list[str] = []
-    tab.on("pageerror", lambda err: errors.append(str(err)))
-    tab.goto(page.url)
-    tab.evaluate("window.linkageExplorer.ready")
-    for size in (default, narrow):
-        tab.set_viewport_size(size)
-        assert_controls_fit(tab, {"c-L-out": "3", "c-speed-out": "1"})
-    tab.fill("#c-lengths", "10.125,20.25,30.5,25.75")
-    tab.fill("#c-masses", "1.234567891,2.345678912,3.456789123")
-    tab.click("#c-apply")
-    tab.wait_for_function("window.linkageExplorer.space().builds === 2", timeout=60_000, polling=50)
-    tab.evaluate("window.linkageExplorer.setLength(55.123456)")
-    tab.evaluate("window.linkageExplorer.setSpeed(0.1 + 0.2)")
-    for size in (narrow, default):
-        tab.set_viewport_size(size)
-        assert_controls_fit(tab, {"c-L-out": "55.12", "c-speed-out": "0.3"})
-    # the slider reaches L: its range is the rods' total length, 86.625
-    assert tab.input_value("#c-L") == "55.12" and tab.get_attribute("#c-L", "max") == "86.625"
-    context.close()
-    assert errors == []
+    explorer, default = "window.linkageExplorer", page.viewport_size
+    assert default == {"width": 1400, "height": 720}
+    page.evaluate(f"{explorer}.setSpeed(1)")
+    assert_controls_fit(page, {"c-L-out": "3", "c-speed-out": "1"})
+    try:
+        rebuild_with(page, "10.125,20.25,30.5,25.75", "1.234567891,2.345678912,3.456789123")
+        page.evaluate(f"{explorer}.setLength(55.123456)")
+        page.evaluate(f"{explorer}.setSpeed(0.1 + 0.2)")
+        for size in ({"width": 640, "height": 480}, default):
+            page.set_viewport_size(size)
+            assert_controls_fit(page, {"c-L-out": "55.12", "c-speed-out": "0.3"})
+        # the slider reaches L: its range is the rods' total length, 86.625
+        assert page.input_value("#c-L") == "55.12" and page.get_attribute("#c-L", "max") == "86.625"
+    finally:
+        page.set_viewport_size(default)
+        page.evaluate(f"{explorer}.setLength(3.0)")
+        rebuild_with(page, "4", "1")
+    assert page.evaluate(f"{explorer}.space()")["topology"].startswith("lengths (1.0, 1.0, 1.0, 1.0), L = 3:")
