@@ -3,7 +3,9 @@
 For ``method="hinges"`` at n = 4 (and ``--n``), CPU time of this process, the fastest of
 ``--rounds`` interleaved rounds (each a batch of calls, averaged):
 
-* the fixed cost of a call: ``free_motion`` to T = 1e-3 (one Taylor step), with and without dense output;
+* the fixed cost of a call: ``free_motion`` to T = 1e-3 (one Taylor step), with and without dense output, each
+  call from the next of ``STARTS`` different starts of one chain (a user's loop over starts: nothing about a start
+  can be remembered from the call before);
 * a T = 10 call (as a user calls it, dense output on; and with ``save=SaveAt(dense=False)``) against heyoka's bare
   ``propagate_until`` on the same compiled integrator from the same state with the same parameters:
   the share of the call spent in heyoka;
@@ -28,13 +30,16 @@ from pathlib import Path
 import numpy as np
 
 SHORT_T = 1e-3
+#: The different starts the fixed-cost calls cycle through.
+STARTS = 16
 
 
-def start(n: int, seed: int = 0):
-    """A chain with ``L = n - 1.3`` and a unit-energy generic start (as ``benchmarks.study.experiments``)."""
+def start(n: int, seed: int = 0, chain=None):
+    """A chain with ``L = n - 1.3`` (or ``chain``, of that shape) and a unit-energy generic start (as
+    ``benchmarks.study.experiments``)."""
     from linkage import Chain
 
-    chain = Chain(n, n - 1.3)
+    chain = Chain(n, n - 1.3) if chain is None else chain
     atlas = chain.atlas()
     rng = np.random.default_rng(seed)
     a0 = np.append(rng.uniform(-1, 1, n - 3), 0.3)
@@ -76,25 +81,35 @@ def measure(n: int, rounds: int) -> dict[str, float]:
     except ImportError:  # a --baseline checkout from before the option groups
         no_dense = {"dense": False}
     chain, h0, w0 = start(n)
+    starts = [start(n, seed, chain)[1:] for seed in range(STARTS)]
 
     def call(T: float, **kw):
         return lambda: free_motion(chain, h0, w0, T, method="hinges", **kw)
 
-    cases = {"fixed, dense": (call(SHORT_T), 200), "fixed, no dense": (call(SHORT_T, **no_dense), 200),
-             "T = 10, dense": (call(10.0), 20), "T = 10, no dense": (call(10.0, **no_dense), 20),
-             "T = 10, bare heyoka": (bare(chain, h0, w0, 10.0), 20),
-             "T = 200, no dense": (call(200.0, **no_dense), 2), "T = 200, bare heyoka": (bare(chain, h0, w0, 200.0), 2)}
+    def calls(**kw):
+        """One call from each of the ``STARTS`` starts."""
+        def run() -> None:
+            for h, w in starts:
+                free_motion(chain, h, w, SHORT_T, method="hinges", **kw)
+        return run
+
+    # (run, runs per batch, calls per run)
+    cases = {"fixed, dense": (calls(), 15, STARTS), "fixed, no dense": (calls(**no_dense), 15, STARTS),
+             "T = 10, dense": (call(10.0), 20, 1), "T = 10, no dense": (call(10.0, **no_dense), 20, 1),
+             "T = 10, bare heyoka": (bare(chain, h0, w0, 10.0), 20, 1),
+             "T = 200, no dense": (call(200.0, **no_dense), 2, 1),
+             "T = 200, bare heyoka": (bare(chain, h0, w0, 200.0), 2, 1)}
     best = {name: np.inf for name in cases}
-    for run, _ in cases.values():
+    for run, _, _ in cases.values():
         run()  # compiles and caches outside the timing
     sol = free_motion(chain, h0, w0, 10.0, method="hinges").solution
     best["dense bytes per step"] = sol.dense_nbytes / sol.n_steps  # not a time: reported as it is
     for _ in range(rounds):
-        for name, (run, batch) in cases.items():
+        for name, (run, batch, per_run) in cases.items():
             c0 = time.process_time()
             for _ in range(batch):
                 run()
-            best[name] = min(best[name], (time.process_time() - c0) / batch)
+            best[name] = min(best[name], (time.process_time() - c0) / (batch * per_run))
     return best
 
 
