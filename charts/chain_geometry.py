@@ -132,11 +132,14 @@ def to_complex(points: ArrayLike) -> NDArray:
 
 
 def rod_vectors(hinges: ArrayLike, L: float) -> NDArray:
-    """Rod vectors ``e_k = p_k - p_{k-1}``, ``k = 1..n``, shape ``(..., n)`` (complex)."""
+    """Rod vectors ``e_k = p_k - p_{k-1}``, ``k = 1..n``, shape ``(..., n)`` (complex), with the pins ``p_0 = 0``
+    and ``p_n = L``."""
     h = np.asarray(hinges)
-    zeros = np.zeros((*h.shape[:-1], 1), dtype=h.dtype)
-    ends = np.full((*h.shape[:-1], 1), L, dtype=h.dtype)
-    return np.diff(np.concatenate([zeros, h, ends], axis=-1), axis=-1)
+    e = np.empty((*h.shape[:-1], h.shape[-1] + 1), dtype=h.dtype)
+    e[..., 0] = h[..., 0]
+    np.subtract(h[..., 1:], h[..., :-1], out=e[..., 1:-1])
+    np.subtract(np.asarray(L, dtype=h.dtype), h[..., -1], out=e[..., -1])
+    return e
 
 
 def hinges_from_rods(rods: ArrayLike) -> NDArray:
@@ -172,11 +175,20 @@ def closure_tolerances(lengths: ArrayLike, tol: float) -> NDArray:
     return np.maximum(tol, START_ROUNDING_MARGIN * rounding_floors(lengths))
 
 
-def closure_excess(hinges: ArrayLike, L: float, lengths: ArrayLike, tol: float) -> NDArray:
-    """``max_k | |e_k| - l_k | / (l_k tol_k)`` (``tol_k``: :func:`closure_tolerances`): at most 1 where a
-    configuration closes as well as asked (NaN for a non-finite one)."""
+def closure_scales(lengths: ArrayLike, tol: float) -> NDArray:
+    """Per rod, the absolute closure error accepted: ``l_k tol_k`` (``tol_k``: :func:`closure_tolerances`)."""
     ls = np.asarray(lengths, dtype=float)
-    return np.max(np.abs(np.abs(rod_vectors(hinges, L)) - ls) / (ls * closure_tolerances(ls, tol)), axis=-1)
+    return ls * closure_tolerances(ls, tol)
+
+
+def closure_excess(hinges: ArrayLike, L: float, lengths: ArrayLike, tol: float,
+                   scales: NDArray | None = None) -> NDArray:
+    """``max_k | |e_k| - l_k | / (l_k tol_k)`` (``tol_k``: :func:`closure_tolerances`): at most 1 where a
+    configuration closes as well as asked (NaN for a non-finite one).  ``scales``, if given, must be
+    :func:`closure_scales` ``(lengths, tol)`` (a caller that checks many configurations keeps them)."""
+    ls = np.asarray(lengths, dtype=float)
+    return np.max(np.abs(np.abs(rod_vectors(hinges, L)) - ls) / (closure_scales(ls, tol) if scales is None else scales),
+                  axis=-1)
 
 
 def validate_side_order(order: ArrayLike, n: int, base: int) -> NDArray:

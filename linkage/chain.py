@@ -38,6 +38,7 @@ from charts import SuspensionAtlas
 from charts.chain_geometry import (
     closure_excess,
     closure_residual,
+    closure_scales,
     hinges_from_rods,
     rod_vectors,
     rounding_floors,
@@ -163,6 +164,7 @@ class Chain:
         self._atlases: dict = {}  # built once: an n = 8 atlas costs ~25 ms
         self._refusal: tuple[str | None] | None = None  # (why there is no atlas, or None), decided once
         self._metric: InducedMetric | None = None  # of the default atlas (its checks of K cost ~0.1 ms a call)
+        self._closure_scales: dict[float, NDArray] = {}  # per tolerance (charts.chain_geometry.closure_scales)
         # what other modules build once from the chain (read-only lengths and masses), by name: the
         # linkage.constraints.chain_system under "chain system" (documented in the class's Attributes)
         self.built: dict[str, Any] = {}
@@ -368,15 +370,22 @@ class Chain:
         """``max_k | |e_k| - l_k | / (l_k tol_k)``, ``tol_k`` the larger of ``tol`` and
         :data:`manifold.constrained.START_ROUNDING_MARGIN` times the rod's :attr:`rounding_floors`
         (:func:`charts.chain_geometry.closure_excess`): at most 1 where :meth:`check_configuration` accepts."""
-        return closure_excess(self.as_hinges(hinges), self.L, self.lengths, tol)
+        return self._closure_excess(self.as_hinges(hinges), tol)
+
+    def _closure_excess(self, h: NDArray, tol: float) -> NDArray:
+        """:meth:`closure_excess` of hinges ``h`` that :meth:`as_hinges` has checked, the rods' scales kept per ``tol``."""
+        scales = self._closure_scales.get(tol)
+        if scales is None:
+            scales = self._closure_scales.setdefault(tol, closure_scales(self.lengths, tol))
+        return closure_excess(h, self.L, self.lengths, tol, scales)
 
     def check_configuration(self, hinges: ArrayLike, tol: float = 1e-9) -> NDArray:
         """Return ``hinges`` as a complex array if each rod closes to ``tol`` relative to its length, or to what
         float64 rounding allows where that is larger (:meth:`closure_tolerances`); raise ``ConfigurationError``
         otherwise."""
         h = self.as_hinges(hinges)
-        excess = self.closure_excess(h, tol)
-        if np.any(~(excess <= 1)):
+        excess = self._closure_excess(h, tol)
+        if (~(excess <= 1)).any():  # the method: no dispatch through np.any
             res = closure_residual(h, self.L, self.lengths)
             raise ConfigurationError(
                 f"configuration does not close: max relative rod-length error {np.max(res):.3g} exceeds tol = {tol:g} "
