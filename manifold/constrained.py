@@ -653,7 +653,7 @@ class ConstrainedGeometry:
         :func:`constraint_bound` (NaN stays NaN, and fails it; no constraints: 0)."""
         if not c.shape[-1]:
             return np.zeros(c.shape[:-1])
-        return np.max(np.abs(np.asarray(c, dtype=float)) / self.weights, axis=-1)
+        return (np.abs(np.asarray(c, dtype=float)) / self.weights).max(axis=-1)  # the method: no np.max dispatch
 
     def packed(self, alpha: Any) -> NDArray:
         """The integrator's parameters (:meth:`ConstrainedLayout.pack`) with the Baumgarte rate ``alpha``."""
@@ -692,18 +692,19 @@ class ConstrainedGeometry:
                    c_abs: NDArray) -> tuple[NDArray, NDArray]:
         """:meth:`project` of rows ``x, v`` (the caller's copies, changed in place) given ``c``, ``G v`` and
         ``|c|`` (as floats) there."""
-        active = np.arange(x.shape[0])
-        for step in range(self._max_steps):
-            if step:
-                c = self(x[active], v[active])[0]
-                c_abs = np.abs(c.astype(float))
-            moving = ~(c_abs <= self.floors).all(axis=1)
-            active, c = active[moving], c[moving]
-            if not active.size:
-                break
-            x[active] = x[active] - self(x[active], v[active], c)[2]
-        if step:  # x moved: G v again at the new x
-            Gv = self(x, v)[1]
+        moved = not (c_abs <= self.floors).all()  # most starts already lie within the floors: no row moves
+        if moved:
+            active = np.arange(x.shape[0])
+            for step in range(self._max_steps):
+                if step:
+                    c = self(x[active], v[active])[0]
+                    c_abs = np.abs(c.astype(float))
+                moving = ~(c_abs <= self.floors).all(axis=1)
+                active, c = active[moving], c[moving]
+                if not active.size:
+                    break
+                x[active] = x[active] - self(x[active], v[active], c)[2]
+            Gv = self(x, v)[1]  # x moved: G v again at the new x
         return x, v - self(x, v, Gv)[2]
 
     def start(self, x0: NDArray, v0: NDArray, t_final: float, rate: float,
@@ -724,8 +725,8 @@ class ConstrainedGeometry:
         x, v = as_fp(x0, self.fp), as_fp(v0, self.fp)  # new arrays: the projection changes them in place
         c, Gv, _, _ = self(x, v)  # the check's c and G v are the projection's first
         c0 = np.abs(c.astype(float))
-        bad = ~(c0 <= self.start_tolerances).all(axis=1)
-        if bad.any():
+        if not (c0 <= self.start_tolerances).all():  # NaN fails too
+            bad = ~(c0 <= self.start_tolerances).all(axis=1)
             k = int(np.argmax(bad))
             j = int(np.argmax(~(c0[k] <= self.start_tolerances)))
             raise ValueError(f"{name(k)} is not on the constraint manifold: |c_{j}(x0)| = {c0[k, j]:.3g} exceeds "
@@ -981,7 +982,7 @@ def solve_constrained(
             t, x, v, carried = adv.t, adv.y[:N], adv.y[N : 2 * N], adv.y[2 * N :]
             if reports is not None:
                 reports.segment(t, "ambient coordinates")
-            drift = float(np.max(geo.drift(c), initial=0.0))
+            drift = float(geo.drift(c).max(initial=0.0))
             status, message = verdict(sol.energy_violation(recorded, eps, "ambient coordinates"), drift,
                                       sol.n_steps, eps, float(t), adv.failure)
             for term, sl in zip(carry, slots):
