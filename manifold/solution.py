@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
+from functools import cached_property
 from collections.abc import Callable
 from typing import Any, Protocol
 
@@ -164,7 +165,11 @@ class SecondOrderDense(TaylorDense):
     def __init__(self, times: NDArray, tcs: NDArray, top: NDArray, fp_type: Any) -> None:
         super().__init__(times, tcs, fp_type)  # tcs: the positions' coefficients, (steps, N, order + 1)
         self.top = top  # the velocities' last coefficients, (steps, N)
-        self._factors = as_fp(np.arange(1, tcs.shape[-1]), fp_type)  # (j + 1) for x_{j+1}, j = 0 .. order - 1
+
+    @cached_property
+    def _factors(self) -> NDArray:
+        """``(j + 1)`` for ``x_{j+1}``, ``j = 0 .. order - 1`` (built when first evaluated: most short solves never are)."""
+        return as_fp(np.arange(1, self.tcs.shape[-1]), self.fp_type)
 
     @property
     def nbytes(self) -> int:
