@@ -37,6 +37,7 @@ A system provides its constraints (and, optionally, hand-written ``G``, ``G v``,
 from __future__ import annotations
 
 import functools
+import math
 import threading
 import time
 from abc import ABC, abstractmethod
@@ -786,7 +787,7 @@ def default_compact_mode(system: ConstrainedSystem, fp_type: Any) -> bool:
 
 def constraint_bound(n_steps: int, eps: float) -> float:
     """The bound on ``max_k |c_k|`` after ``n_steps`` steps at relative tolerance ``eps``: ``1000 sqrt(n_steps + 1) eps``."""
-    return float(1e3 * np.sqrt(n_steps + 1) * eps)
+    return float(1e3 * math.sqrt(n_steps + 1) * eps)  # math: no numpy scalar round trip
 
 
 def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float, t: float,

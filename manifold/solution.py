@@ -12,6 +12,7 @@ partial solution, or, with ``throw=False``, is reported in ``status``.
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from collections.abc import Callable
@@ -36,7 +37,7 @@ ENERGY_FLOOR = 1e5
 
 def energy_bound(n_steps: int, tol: float) -> float:
     """The solvers' bound on ``|E - E0| / E0`` after ``n_steps`` steps: ``(ENERGY_SAFETY sqrt(n_steps + 1) + ENERGY_FLOOR) tol``."""
-    return float((ENERGY_SAFETY * np.sqrt(n_steps + 1) + ENERGY_FLOOR) * tol)
+    return float((ENERGY_SAFETY * math.sqrt(n_steps + 1) + ENERGY_FLOOR) * tol)  # math: no numpy scalar round trip
 
 
 def energy_violation(deviations: NDArray, times: Any, n_steps: int, tol: float, where: str) -> str | None:
