@@ -58,10 +58,10 @@ def energy_violation(deviations: NDArray, times: Any, n_steps: int, tol: float, 
     """
     err = np.asarray(deviations, dtype=float)
     bound = energy_bound(n_steps, tol)
-    bad = ~(err <= bound)  # NaN counts as a violation
-    if not bad.any():
+    within = err <= bound  # NaN counts as a violation
+    if within.all():
         return None
-    k = int(np.argmax(bad))
+    k = int(np.argmax(~within))
     return (f"energy check failed at t = {float(times[k]):.6g} in {where}: "
             f"|E - E0| / E0 = {err[k]:.3g} exceeds the bound {bound:.3g} = ({ENERGY_SAFETY:g} sqrt(steps + 1) + "
             f"{ENERGY_FLOOR:g}) tol (tol = {tol:.3g})")
