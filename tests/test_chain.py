@@ -178,6 +178,38 @@ def test_closure_uses_the_rod_lengths():
         chain.hinges_from_angles(th + 0.1)
 
 
+def test_closure_tolerance_is_the_one_asked_for_in_any_order():
+    """The rods' accepted errors are kept per tolerance: a check at one tolerance never answers for another.
+
+    The 3-4-5 triangle with ``p_1`` 1e-7 too long (relative) closes to 1e-6 but not to 1e-9, whichever is asked first.
+    """
+    h = np.array([(9 + 12j) / 5 * (1 + 1e-7)])
+    for order in ((1e-9, 1e-6), (1e-6, 1e-9)):
+        chain = Chain([3.0, 4.0], 5.0)
+        for tol in order + order:
+            if tol == 1e-6:
+                np.testing.assert_array_equal(chain.check_configuration(h, tol=tol), h)
+                assert 0.099 < chain.closure_excess(h, tol) < 0.101  # 1e-7 relative on rod 1, against 1e-6
+            else:
+                assert 99 < chain.closure_excess(h, tol) < 101
+                with pytest.raises(ConfigurationError, match="does not close"):
+                    chain.check_configuration(h, tol=tol)
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(2, 7), st.integers(1, 3))
+def test_rods_of_batches_are_the_hinge_differences(seed, n, rows):
+    """``e_1 = p_1``, ``e_k = p_k - p_{k-1}``, ``e_n = L - p_{n-1}``, row by row, for any batch shape."""
+    rng = np.random.default_rng(seed)
+    chain = Chain(n, 0.5 + (n - 1) * rng.uniform())
+    h = rng.normal(size=(rows, 2, n - 1)) + 1j * rng.normal(size=(rows, 2, n - 1))
+    e = chain.rods(h)
+    assert e.shape == (rows, 2, n) and e.dtype == complex
+    for idx in np.ndindex(rows, 2):
+        p = np.concatenate([[0.0], h[idx], [chain.L]])
+        assert np.array_equal(e[idx], [p[k + 1] - p[k] for k in range(n)])
+    np.testing.assert_array_equal(chain.rods(h[0, 0]), e[0, 0])  # one configuration as a row of the batch
+
+
 @given(st.integers(0, 2**32 - 1))
 def test_diagonals_of_the_chain_round_trip(seed):
     chain = Chain([1.0, 2.0, 1.5, 2.5, 1.2], 3.0)
