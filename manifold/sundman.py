@@ -220,16 +220,19 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, de
     n_events, forward = len(ta.t_events), float(t_final - t) > 0  # dt/dtau > 0: tau runs with t
     taus, tcs, origins, spans = [ta.time], [], [], []
     clock = {"origin": t, "span": t_final - t, "steps": 0, "now": t, "stalled": False}  # t = origin + span u
+    # views of the integrator's coefficients and state, which heyoka updates in place and never moves (every
+    # precision): taken once, not per step (~0.5 us each a step)
+    tc, live = ta.tc, ta.state
 
     def record(ta: Any) -> bool:
         origin, span = clock["origin"], clock["span"]
         clock["steps"] += 1
         if dense:
-            tcs.append(ta.tc.copy())
+            tcs.append(tc.copy())
             taus.append(ta.time)
             origins.append(origin)
             spans.append(span)
-        now = clock["now"] = origin + span * ta.state[-1]
+        now = clock["now"] = origin + span * live[-1]
         if progress is not None:
             progress(SimpleNamespace(time=now))
         if clock["steps"] % RESTART_STEPS == 0 and now != t_final:  # between steps (1 / 0 if t_final is hit exactly)
@@ -238,7 +241,7 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, de
                 clock["stalled"] = True
                 return False
             clock["origin"], clock["span"] = now, t_final - now
-            ta.state[-1] = fp_type(0.0)
+            live[-1] = fp_type(0.0)
             ta.pars[span_index] = 1 / clock["span"]
         return True
 
@@ -246,7 +249,7 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, de
     outcome, n_steps, stop = propagate_until(ta, fp_type(TAU_LIMIT if forward else -TAU_LIMIT), callback=record,
                                              write_tc=dense, max_steps=allowance(per_step))
     spend(n_steps, per_step)
-    state = np.array(ta.state)
+    state = np.array(live)
     y_end = state[:-1]
     event, failure, t_end = None, None, clock["origin"] + clock["span"] * state[-1]
     if stop is not None:  # Ctrl-C or the budget: the callback recorded the last step whole before it stopped
