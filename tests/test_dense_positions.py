@@ -77,3 +77,35 @@ def test_positions_need_a_state_of_positions_and_velocities():
     comp = compiled_constrained(ChainSystem(chain))
     with comp.integrator() as ta, pytest.raises(ValueError, match="positions = 5 needs a state"):
         taylor_advance(ta, 0.0, np.zeros(12), 1.0, np.zeros(len(ta.pars)), True, float, positions=5)
+
+
+@pytest.mark.parametrize("fp_type", [float, np.longdouble], ids=["float64", "long double"])
+@pytest.mark.parametrize("positions", [0, 1], ids=["full polynomials", "positions' polynomials"])
+def test_every_step_keeps_its_own_coefficients(fp_type, positions):
+    """The oscillator ``x' = v, v' = -x`` from ``(1, 0)``: the dense output of every step gives ``(cos t, -sin t)``,
+    and agrees with heyoka's own continuous output of the same run.
+
+    (Each step's coefficients are copied from the integrator's buffer, which heyoka fills in place: a copy of the
+    wrong step, or of the last one for all, would miss by the step's length.)
+    """
+    x, v = hy.make_vars("x", "v")
+    ta = hy.taylor_adaptive([(x, v), (v, -x)], np.array([1.0, 0.0]).astype(fp_type), fp_type=fp_type)
+    y0 = np.array([1.0, 0.0]).astype(fp_type)
+    adv = taylor_advance(ta, fp_type(0.0), y0, fp_type(10.0), np.zeros(0, dtype=fp_type), True, fp_type,
+                         positions=positions)
+    assert adv.n_steps >= 8  # steps of about 1: the picture changes from step to step
+    ts = np.linspace(0.0, 10.0, 401)
+    got = adv.dense(ts.astype(fp_type))
+    eps = unit_roundoff(fp_type)
+    np.testing.assert_allclose(got.astype(float), np.stack([np.cos(ts), -np.sin(ts)], axis=1), rtol=0, atol=1e-14)
+    if fp_type is np.longdouble:  # closer than float64 can show: against mpmath's cos and sin at 30 digits
+        import mpmath
+        mpmath.mp.dps = 30
+        exact = np.array([[mpmath.cos(mpmath.mpf(str(t))), -mpmath.sin(mpmath.mpf(str(t)))] for t in ts[::20]])
+        err = max(abs(mpmath.mpf(str(g)) - e) for g, e in zip(got[::20].ravel(), exact.ravel()))
+        assert err < 1e3 * eps
+    ta.state[:] = y0
+    ta.time = fp_type(0.0)
+    c_out = ta.propagate_until(fp_type(10.0), c_output=True)[4]  # c_out(t) is a view of a buffer it reuses: copied
+    theirs = np.array([c_out(t).copy() for t in ts.astype(fp_type)])
+    assert np.abs(got - theirs).max() < 100 * eps  # in the working precision
