@@ -100,9 +100,9 @@ def test_every_step_keeps_its_own_coefficients(fp_type, positions):
     np.testing.assert_allclose(got.astype(float), np.stack([np.cos(ts), -np.sin(ts)], axis=1), rtol=0, atol=1e-14)
     if fp_type is np.longdouble:  # closer than float64 can show: against mpmath's cos and sin at 30 digits
         import mpmath
-        mpmath.mp.dps = 30
-        exact = np.array([[mpmath.cos(mpmath.mpf(str(t))), -mpmath.sin(mpmath.mpf(str(t)))] for t in ts[::20]])
-        err = max(abs(mpmath.mpf(str(g)) - e) for g, e in zip(got[::20].ravel(), exact.ravel()))
+        with mpmath.workdps(30):
+            exact = [[mpmath.cos(mpmath.mpf(t)), -mpmath.sin(mpmath.mpf(t))] for t in ts[::20]]
+            err = max(abs(mpmath.mpf(str(g)) - e) for g, e in zip(got[::20].ravel(), np.ravel(exact)))
         assert err < 1e3 * eps
     ta.state[:] = y0
     ta.time = fp_type(0.0)
