@@ -10,7 +10,9 @@ For ``method="hinges"`` at n = 4 (and ``--n``), CPU time of this process, the fa
   ``propagate_until`` on the same compiled integrator from the same state with the same parameters:
   the share of the call spent in heyoka;
 * the same at T = 200 (``SaveAt(dense=False)``): the call's time over bare heyoka's;
-* the bytes of dense output per Taylor step (T = 10).
+* the bytes of dense output per Taylor step (T = 10);
+* with ``--breakdown``: the pieces of a one-step call (the start's checks, the geometry's calls, the Ctrl-C
+  handler, heyoka's step), each timed alone.
 
 ``--baseline DIR`` measures another checkout of the library (``DIR`` on ``PYTHONPATH``) in a
 subprocess, alternating with this one round by round, and prints both side by side: before and
@@ -113,6 +115,69 @@ def measure(n: int, rounds: int) -> dict[str, float]:
     return best
 
 
+def breakdown(n: int, rounds: int) -> dict[str, float]:
+    """Seconds per call of the pieces of a one-step ``free_motion`` (no dense output), each timed alone over the
+    ``STARTS`` starts (the fastest of ``rounds`` interleaved rounds).  Alone, a piece runs with its code and data
+    in the caches: the pieces sum to less than the whole call."""
+    import signal
+
+    from linkage.constraints import chain_system, start_state
+    from linkage.motion import chart_metric, free_motion
+    from manifold import SaveAt, StartCheck
+    from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode, solve_constrained
+    from manifold.interrupt import interruptible
+
+    chain = start(n)[0]
+    starts = [start(n, seed, chain)[1:] for seed in range(STARTS)]
+    check, no_dense = StartCheck(), SaveAt(dense=False)
+    checked = [start_state(chain, h, w, SHORT_T, check) for h, w in starts]
+    system = chain_system(chain)
+    geo, metric, comp = ConstrainedGeometry.of(system, float), chart_metric(chain), compiled_constrained(system)
+    rows = [(s.x0[None, :], s.v0[None, :]) for s in checked]
+    columns = [np.ascontiguousarray(np.concatenate([x.T, v.T, np.zeros((system.n_constraints, 1))])) for x, v in rows]
+    one_column = np.ascontiguousarray(geo.pars[: geo.cf.nparams, None])
+    states = [np.concatenate([s.x0, s.v0]) for s in checked]
+    pars = geo.packed(0.1)
+
+    def block() -> None:
+        with interruptible():
+            pass
+
+    def sigint() -> None:
+        previous = signal.signal(signal.SIGINT, signal.getsignal(signal.SIGINT))
+        signal.signal(signal.SIGINT, previous)
+
+    with comp.integrator(float, None, True, default_compact_mode(system, float)) as ta:
+        def step(k: int) -> None:
+            ta.state[:], ta.time, ta.pars[:] = states[k], 0.0, pars[: len(ta.pars)]
+            ta.propagate_until(SHORT_T)
+
+        pieces = {
+            "free_motion": lambda k: free_motion(chain, *starts[k], SHORT_T, method="hinges", save=no_dense),
+            "  start_state": lambda k: start_state(chain, *starts[k], SHORT_T, check),
+            "    closure check": lambda k: chain.check_one_configuration(starts[k][0], "hinges0"),
+            "    tangency check": lambda k: (checked[k].constraints.tangency_residual(checked[k].x0, checked[k].v0),
+                                             checked[k].constraints.tangency_allowance(checked[k].v0, 1e-9)),
+            "  solve_constrained": lambda k: solve_constrained(system, checked[k].x0, checked[k].v0, SHORT_T,
+                                                               save=no_dense, metric=metric),
+            "    ConstrainedGeometry.start": lambda k: geo.start(*rows[k], SHORT_T, 1.0),
+            "      a geometry call": lambda k: geo(*rows[k]),
+            "        its compiled function": lambda k: geo.cf(columns[k], pars=one_column),
+            "    interruptible block": lambda k: block(),
+            "      SIGINT handler in and out": lambda k: sigint(),
+            "    heyoka: one step": step,
+        }
+        best = {name: np.inf for name in pieces}
+        for _ in range(rounds):
+            for name, piece in pieces.items():
+                c0 = time.process_time()
+                for _ in range(10):
+                    for k in range(STARTS):
+                        piece(k)
+                best[name] = min(best[name], (time.process_time() - c0) / (10 * STARTS))
+    return best
+
+
 def derived(m: dict[str, float]) -> dict[str, float]:
     return {"share of a T = 10 call in heyoka (dense)": m["T = 10, bare heyoka"] / m["T = 10, dense"],
             "share of a T = 10 call in heyoka (no dense)": m["T = 10, bare heyoka"] / m["T = 10, no dense"],
@@ -155,10 +220,15 @@ if __name__ == "__main__":
     parser.add_argument("--n", type=int, nargs="+", default=[4])
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--baseline", type=Path, default=None, help="another checkout, measured alternately")
+    parser.add_argument("--breakdown", action="store_true", help="the pieces of a one-step call, each timed alone")
     parser.add_argument("--json", action="store_true", help=argparse.SUPPRESS)  # one n, machine-readable
     args = parser.parse_args()
     for n in args.n:
-        if args.json:
+        if args.breakdown:
+            print(f"n = {n}, hinges, one-step call without dense output: CPU time of each piece alone")
+            for k, v in breakdown(n, args.rounds).items():
+                print(f"  {k:32s} {1e6 * v:7.1f} us")
+        elif args.json:
             print(json.dumps(measure(n, args.rounds)))
         elif args.baseline is not None:
             side_by_side(n, args.rounds, args.baseline)
