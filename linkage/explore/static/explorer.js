@@ -20,7 +20,7 @@ const S = {
   pose: null,                      // [[re, im], ...] of the chain at rest (no motion)
   samples: [], switches: [], chartIds: [], index: -1, clock: 0, maxError: 0,
   running: false, paused: false, speed: 1, method: null, precision: null,
-  ws: null, wsReady: null, pendingMore: false, awaitingLaunch: null, lastLaunch: null,
+  ws: null, wsReady: null, pendingMore: false, awaitingLaunch: null, lastLaunch: null, lastRelease: null,
   error: null, metrics: { tFlick: null, flickToFirstFrameMs: null, frames: 0, playSeconds: 0, fps: null },
 };
 
@@ -338,9 +338,10 @@ function currentHinges() {
 }
 
 // a drag records (time of the pointer event, hinges there); the release launches with the velocity of the last
-// ~80 ms of it, unless the pointer rested for holdMs (HOLD_MS unless a test sets it) before it
-const HOLD_MS = 250;
-let holdMs = HOLD_MS;
+// ~80 ms of it, unless the pointer rested for holdMs (HOLD_MS unless a test sets it) before it, or that velocity
+// is below restSpeed (REST_SPEED of the chain's size per second unless a test sets it); S.lastRelease says which
+const HOLD_MS = 250, REST_SPEED = 0.02;
+let holdMs = HOLD_MS, restSpeed = REST_SPEED;
 function makeDrag(project) {
   let history = [], busy = null, target = null;
   async function pump() {
@@ -355,24 +356,33 @@ function makeDrag(project) {
     busy = null;
   }
   return {
-    start() { stop(); S.index = -1; S.samples = []; clearPaths(); history = [{ time: performance.now(), hinges: S.pose }]; },
+    start() {
+      stop(); S.index = -1; S.samples = []; clearPaths(); S.lastRelease = null;
+      history = [{ time: performance.now(), hinges: S.pose }];
+    },
     pending() { return busy !== null; },
     move(goal) { target = { goal, time: performance.now() }; if (!busy) busy = pump(); },
     async release() {
       S.metrics.tFlick = performance.now(); S.metrics.flickToFirstFrameMs = null;
+      S.lastRelease = 'pending';
       if (busy) await busy;
       const last = history[history.length - 1];
-      if (S.metrics.tFlick - last.time > holdMs) return;  // held still, then released: the chain stays posed
+      if (S.metrics.tFlick - last.time > holdMs) {  // held still, then released: the chain stays posed
+        S.lastRelease = `held ${(S.metrics.tFlick - last.time).toFixed(0)} ms`; return;
+      }
       const old = [...history].reverse().find((e) => last.time - e.time >= 80) ?? history[0];
       const dt = (last.time - old.time) / 1000;
-      if (dt <= 0) return;
+      if (dt <= 0) { S.lastRelease = 'not moved'; return; }
       const v = last.hinges.map((h, k) => [(h[0] - old.hinges[k][0]) / dt, (h[1] - old.hinges[k][1]) / dt]);
       const speed = Math.sqrt(v.reduce((a, [x, y]) => a + x * x + y * y, 0));
-      if (speed < 0.02 * scale) return;  // released at rest: the chain stays posed
+      if (speed < restSpeed * scale) {  // released at rest: the chain stays posed
+        S.lastRelease = `at rest: speed ${speed.toPrecision(3)} over ${(1000 * dt).toFixed(0)} ms`; return;
+      }
       try {
         const tangent = await api('/api/project', { ...chainBody(), hinges: last.hinges, velocity: v });
         await launch({ hinges: last.hinges, velocity: tangent.velocity });
-      } catch (err) { showError(err.message); }
+        S.lastRelease = 'launched';
+      } catch (err) { S.lastRelease = `error: ${err.message}`; showError(err.message); }
     },
   };
 }
@@ -605,6 +615,9 @@ window.linkageExplorer = {
   setSpeed(v) { S.speed = v; $('c-speed').value = v; $('c-speed-out').textContent = sliderText(v); },
   // a test driving the mouse from another process sets a longer hold: its own latency under load is no rest
   setHoldMs(ms) { const old = holdMs; holdMs = ms; return old; },
+  // ... and a lower rest speed: under load its pointer steps can arrive in one burst, long after the press
+  setRestSpeed(v) { const old = restSpeed; restSpeed = v; return old; },
+  lastRelease: () => S.lastRelease,
   hingeScreen: screenOfHinge,
   cubeScreen: screenOfAngles,
   dragPending: () => chainDrag.pending() || spaceDrag.pending(),
