@@ -915,7 +915,10 @@ def solve_constrained(
         With segments in ambient coordinates (``chart = None``).  Energies are
         recorded at every step and checked against the solvers' bound;
         ``max_k |c_k|`` likewise (status ``CONSTRAINT_CHECK_FAILED``), and the
-        carried terms' invariants (``CARRIED_CHECK_FAILED``).
+        carried terms' invariants (``CARRIED_CHECK_FAILED``).  Without dense output
+        (``SaveAt(dense=False)``) the energy and ``max_k |c_k|`` are checked at the kept states only, with the same
+        bound (it counts every step): the ``t_eval`` times, which heyoka samples as it steps (no Python per step,
+        unless terms are carried: their invariants are checked at every step), and each segment's end.
     """
     wall0 = time.perf_counter()
     precision, save = check_group("precision", precision, Precision), check_group("save", save, SaveAt)
@@ -963,6 +966,8 @@ def solve_constrained(
     sign = float(np.sign(t_final))
     ends = [t_final] if stabilisation != "projection" else _chunk_ends(t_final, interval)
     n_grid, project_seconds = 0, 0.0
+    # without dense output heyoka samples the grid itself; carried terms' invariants are checked at every step
+    sampled = grid is not None and not dense and not carry
     t = fp_type(0.0)
     with solve_progress(report, sol) as reports, comp.integrator(fp_type, tol, stabilisation == "baumgarte",
                                                                       compact_mode, carry) as ta, \
@@ -971,8 +976,10 @@ def solve_constrained(
         pars = geo.packed(alpha)
         for end in ends:
             # x' = v: without carried terms the positions' polynomials hold the velocities' (half the bytes)
+            times = _segment_grid(grid, n_grid, end, sign, fp_type) if grid is not None and sampled else None
             adv = taylor_advance(ta, t, np.concatenate([x, v, carried]), fp_type(end), pars,
-                                 dense or grid is not None, fp_type, positions=0 if carry else N)
+                                 dense or (grid is not None and times is None), fp_type,
+                                 positions=0 if carry else N, grid=times)
             sol.segments.append(Segment(None, t, adv.t, adv.n_steps, adv.dense if dense else None))
             c, _, _, E = geo(adv.step_states[:, :N], adv.step_states[:, N : 2 * N])
             recorded = len(sol.energies)
@@ -1013,6 +1020,12 @@ def solve_constrained(
     if status is not SolveStatus.SUCCESS and throw:
         raise GeodesicIntegrationError(message, sol)
     return sol
+
+
+def _segment_grid(grid: NDArray, done: int, end: float, sign: float, fp_type: Any) -> NDArray:
+    """The times of ``grid`` from ``done`` up to a segment's ``end`` (inclusive), in the working precision."""
+    upto = int(np.searchsorted(sign * grid, sign * end, side="right"))
+    return as_fp(grid[done:upto], fp_type)
 
 
 def _chunk_ends(t_final: float, interval: float) -> list[float]:

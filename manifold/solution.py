@@ -352,15 +352,15 @@ class GeodesicSolution:
                     point_velocity: Callable[[NDArray], tuple[NDArray, NDArray]]) -> int:
         """Record the ``t_eval`` times inside the segment just integrated; return how many are done.
 
-        ``adv`` is the stepper's :class:`~manifold.steppers.Advance` (its dense
-        output is evaluated); ``point_velocity`` maps dense states ``(m, 2k)``
+        ``adv`` is the stepper's :class:`~manifold.steppers.Advance`: its samples, if it was given the grid's
+        times from ``done`` on, else its dense output evaluated there; ``point_velocity`` maps states ``(m, 2k)``
         to points and embedded velocities ``(m, N)`` each; ``sign`` is the
         direction of integration.
         """
         upto = int(np.searchsorted(sign * grid, sign * float(adv.t), side="right"))
-        if upto <= done or adv.dense is None:
+        if upto <= done or (adv.dense is None and adv.samples is None):
             return done
-        p, v = point_velocity(adv.dense(grid[done:upto]))
+        p, v = point_velocity(adv.samples[: upto - done] if adv.samples is not None else adv.dense(grid[done:upto]))
         if self.points is None or self.velocities is None:  # the first grid times: allocate both
             self.points = np.empty((len(grid), p.shape[1]), dtype=p.dtype)
             self.velocities = np.empty_like(self.points)

@@ -38,7 +38,7 @@ from scipy.integrate import OdeSolution
 from .budget import allowance, dense_bytes_per_step, spend
 from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
 from .events import Event, first_crossing
-from .interrupt import propagate_until
+from .interrupt import propagate_grid, propagate_until
 from .precision import is_double, unit_roundoff
 from .progress import step_callback
 from .solution import CallableDense, DenseOutput, PointDense, SecondOrderDense, TaylorDense
@@ -68,6 +68,9 @@ class Advance:
         Continuous output of the segment (``None`` unless asked for).
     failure
         Why the stepper broke down (``None`` if it did not).
+    samples
+        States at the times of the grid the stepper was given, in order, as many as it reached (``None``
+        unless it sampled a grid itself: :func:`taylor_advance` with ``grid``).
     """
 
     t: Any
@@ -78,6 +81,7 @@ class Advance:
     step_states: NDArray
     dense: DenseOutput | None = None
     failure: str | None = None
+    samples: NDArray | None = None
 
 
 #: ``advance(t, y, t_final, pars, dense) -> Advance``
@@ -237,7 +241,7 @@ def taylor_relative_tolerance(tol: float | None, fp_type: Any) -> float:
 
 
 def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool, fp_type: Any,
-                   positions: int = 0) -> Advance:
+                   positions: int = 0, grid: NDArray | None = None) -> Advance:
     """Run the heyoka integrator ``ta`` from ``(t, y)`` to ``t_final`` or its first terminal event.
 
     Shared by every Taylor method (chart geodesics, constrained motion): sets
@@ -245,6 +249,12 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     keeps each step's Taylor coefficients in a :class:`TaylorDense` when ``dense``.
     With ``positions = N`` (a system whose whole state is ``(x, v)`` with ``x' = v``, ``N`` positions)
     it keeps only the positions' and a :class:`~manifold.solution.SecondOrderDense`, half the bytes.
+
+    With a ``grid`` of times in ``[t, t_final]`` (integration order, in the working precision) and no ``dense``,
+    heyoka evaluates the states there on each step's Taylor polynomials as it goes
+    (:func:`manifold.interrupt.propagate_grid`, the same steps; no Python per step) into
+    :attr:`Advance.samples`, and the states kept for the checks (:attr:`Advance.step_states`) are those at the
+    grid's times after ``t`` and at the end.
     """
     if positions and len(y) != 2 * positions:
         raise ValueError(f"positions = {positions} needs a state (x, v) of {2 * positions} components, got {len(y)}")
@@ -272,6 +282,8 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
         step_times.append(ta.time)
         return progress is None or progress(ta)
 
+    if grid is not None and not dense:
+        return _sampled_advance(ta, t, t_final, grid, n_events, progress)
     # The Taylor coefficients of each step, kept by a step callback: heyoka's c_output gives the same numbers
     # but builds a continuous_output (an LLVM state) on every call, ~2.5 ms per segment.
     callback = (record_positions if positions else record) if dense else progress
@@ -280,10 +292,7 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
                                              max_steps=allowance(per_step))
     spend(n_steps, per_step)
     y_end = np.array(ta.state)
-    event: int | None = None
-    failure: str | None = stop  # Ctrl-C or the budget stopped it, else heyoka's outcome says
-    if stop is None and outcome != hy.taylor_outcome.time_limit:
-        event, failure = terminal_event(outcome, n_events)
+    event, failure = _ending(outcome, stop, n_events)
     out: DenseOutput | None = None
     if dense and n_steps > 0 and positions:
         out = SecondOrderDense(np.array(step_times), np.array(tcs), np.array(tops), fp_type)
@@ -298,6 +307,30 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
         out = PointDense(y_end) if dense else None
         times, states = np.array([ta.time]), y_end[None, :]
     return Advance(ta.time, y_end, n_steps, event, times, states, out, failure)
+
+
+def _sampled_advance(ta: Any, t: Any, t_final: Any, grid: NDArray, n_events: int,
+                     progress: Callable[[Any], bool] | None) -> Advance:
+    """:func:`taylor_advance` of ``ta`` (state, time and parameters set) to ``t_final`` sampling ``grid`` in heyoka."""
+    times = grid if len(grid) and grid[-1] == t_final else np.append(grid, t_final)  # the run ends at t_final
+    outcome, n_steps, stop, states = propagate_grid(ta, times, callback=progress, max_steps=allowance(0))
+    spend(n_steps, 0)
+    y_end = np.array(ta.state)
+    event, failure = _ending(outcome, stop, n_events)
+    times = times[: len(states)]
+    kept = (times != t) & np.concatenate([[True], times[1:] != times[:-1]])  # each time after the start once
+    kept_times, kept_states = times[kept], states[kept]
+    if not len(kept_times) or kept_times[-1] != ta.time:
+        kept_times, kept_states = np.append(kept_times, ta.time), np.concatenate([kept_states, y_end[None, :]])
+    return Advance(ta.time, y_end, n_steps, event, kept_times, kept_states, None, failure, states[: len(grid)])
+
+
+def _ending(outcome: Any, stop: str | None, n_events: int) -> tuple[int | None, str | None]:
+    """``(event, failure)`` of a propagation that ended with heyoka's ``outcome``: Ctrl-C or the budget (``stop``),
+    a terminal event, heyoka's failure, or neither (it reached its time)."""
+    if stop is None and outcome != hy.taylor_outcome.time_limit:
+        return terminal_event(outcome, n_events)
+    return None, stop
 
 
 def terminal_event(outcome: Any, n_events: int) -> tuple[int | None, str | None]:

@@ -12,6 +12,7 @@ import signal
 import threading
 import time
 
+import heyoka as hy
 import numpy as np
 import pytest
 
@@ -30,6 +31,8 @@ RUNS = {
     "hinges": lambda T, **kw: free_motion(CHAIN, H[0], V[0], T, method="hinges", **kw),
     "hinges, no dense output": lambda T, **kw: free_motion(CHAIN, H[0], V[0], T, method="hinges",
                                                            save=SaveAt(dense=False), **kw),
+    "hinges, a grid and no dense output": lambda T, **kw: free_motion(
+        CHAIN, H[0], V[0], T, method="hinges", save=SaveAt(t_eval=np.linspace(0.0, T, 101), dense=False), **kw),
     "charts (Sundman's time)": lambda T, **kw: free_motion(CHAIN, H[0], V[0], T, method="charts", **kw),
     "lyapunov": lambda T, **kw: lyapunov_exponent(CHAIN, H[0], V[0], T, **kw),
 }
@@ -64,7 +67,7 @@ def test_ctrl_c_stops_a_long_solve_with_its_partial_result(name):
         assert 0 < reached < 1e7 and result.relative_energy_error <= 1e-12  # what it computed is sound
         end_point, _ = result.end_state()
         assert CHAIN.closure_residual(CHAIN.from_point(end_point.astype(float))) <= 1e-12
-        if name != "hinges, no dense output":
+        if "no dense output" not in name:
             assert np.abs(result(reached)[0] - end_point).max() <= 1e-12
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
@@ -80,6 +83,44 @@ def test_chunks_change_no_digit(monkeypatch):
         ts = np.linspace(0, 30, 7)
         assert chunked.n_steps == motion.n_steps
         assert np.array_equal(chunked.solution(ts)[0], motion.solution(ts)[0])
+
+
+def test_chunks_change_no_sample(monkeypatch):
+    """A grid sampled by heyoka in chunks of 16 steps against one chunk: the same steps, the samples to rounding
+    (each chunk restarts heyoka's grid at the time reached, a float64, without the low half of its double-length
+    time: 1e-16 a restart, grown by the chain's instability to 4e-14 in 18 chunks over T = 30)."""
+    run = RUNS["hinges, a grid and no dense output"]
+    monkeypatch.setattr(interrupt, "FIRST_CHUNK", 10**9)
+    whole = run(30.0).solution
+    monkeypatch.setattr(interrupt, "FIRST_CHUNK", 16)
+    monkeypatch.setattr(interrupt, "CHUNK_SECONDS", 0.0)
+    chunked = run(30.0).solution
+    assert chunked.n_steps == whole.n_steps > 16 * 5
+    assert np.abs(chunked.points - whole.points).max() <= 1e-12
+    assert np.abs(chunked.velocities - whole.velocities).max() <= 1e-12
+
+
+def _pendulum():
+    x, v = hy.make_vars("x", "v")
+    return hy.taylor_adaptive([(x, v), (v, -hy.sin(x))], [1.0, 0.0], tol=1e-15)
+
+
+def test_propagate_grid_stopped_on_a_grid_time_and_resumed():
+    """A grid with repeats and a time exactly where a step limit stops the run: the rows up to it (the state there),
+    none beyond; resumed from there, the rest, all as heyoka's own ``propagate_grid`` gives them in one go."""
+    probe = _pendulum()
+    probe.propagate_until(100.0, max_steps=3)
+    t3 = probe.time  # where three steps end
+    grid = np.array([0.0, 0.0, 0.5 * t3, t3, t3, 1.5 * t3, 10.0, 10.0])
+    ta = _pendulum()
+    outcome, steps, stop, states = interrupt.propagate_grid(ta, grid, max_steps=3)
+    assert (outcome, steps, stop) == (hy.taylor_outcome.step_limit, 3, interrupt.BUDGET) and ta.time == t3
+    assert len(states) == 5 and np.array_equal(states[3], ta.state) and np.array_equal(states[4], ta.state)
+    _, _, stop, rest = interrupt.propagate_grid(ta, grid[3:])
+    assert stop is None and ta.time == 10.0 and len(rest) == 5
+    reference = _pendulum().propagate_grid(np.unique(grid))[-1]
+    ours = np.concatenate([states, rest[2:]])
+    assert np.all(np.abs(ours - reference[[0, 0, 1, 2, 2, 3, 4, 4]]) <= 1e-15)
 
 
 @pytest.mark.parametrize("method", ["hinges", "charts"])
