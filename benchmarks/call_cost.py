@@ -10,6 +10,8 @@ For ``method="hinges"`` at n = 4 (and ``--n``), CPU time of this process, the fa
   ``propagate_until`` on the same compiled integrator from the same state with the same parameters:
   the share of the call spent in heyoka;
 * the same at T = 200 (``SaveAt(dense=False)``): the call's time over bare heyoka's;
+* a T = 20 call sampling 101 times (``SaveAt(t_eval=..., dense=False)``), at the default tolerance and at
+  1e-10, against heyoka's bare ``propagate_grid`` on the same integrator and times;
 * the bytes of dense output per Taylor step (T = 10);
 * with ``--breakdown``: the pieces of a one-step call (the start's checks, the geometry's calls, the Ctrl-C
   handler, heyoka's step), each timed alone.
@@ -51,24 +53,28 @@ def start(n: int, seed: int = 0, chain=None):
     return chain, chain.from_point(p0), chain.from_point(v0)
 
 
-def bare(chain, h0, w0, T: float):
-    """``run()``: heyoka's ``propagate_until(T)`` on the hinge method's own integrator, state and parameters."""
+def bare(chain, h0, w0, T: float | np.ndarray, tol: float | None = None):
+    """``run()``: heyoka's ``propagate_until(T)`` on the hinge method's own integrator (at ``tol``), state and
+    parameters; ``propagate_grid(T)`` if ``T`` is an array of times."""
     from linkage.constraints import ChainSystem
     from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
 
     system = ChainSystem(chain)
     comp = compiled_constrained(system)
     xs, vs, _, alphas = ConstrainedGeometry(system, float).start(chain.to_point(h0)[None, :],
-                                                                 chain.to_point(w0)[None, :], T, 1.0)
+                                                                 chain.to_point(w0)[None, :], np.max(T), 1.0)
     y0 = np.concatenate([xs[0], vs[0]])
     pars = comp.layout.pack(system, float(alphas[0]), float)
 
     def run() -> None:
-        with comp.integrator(float, None, True, default_compact_mode(system, float)) as ta:
+        with comp.integrator(float, tol, True, default_compact_mode(system, float)) as ta:
             ta.state[:] = y0
             ta.time = 0.0
             ta.pars[:] = pars[: len(ta.pars)]
-            ta.propagate_until(T)
+            if isinstance(T, np.ndarray):
+                ta.propagate_grid(T)
+            else:
+                ta.propagate_until(T)
 
     return run
 
@@ -77,11 +83,11 @@ def measure(n: int, rounds: int) -> dict[str, float]:
     """Seconds per call of each case, the fastest of ``rounds`` batches."""
     from linkage.motion import free_motion
 
-    try:
-        from manifold import SaveAt
-        no_dense: dict = {"save": SaveAt(dense=False)}
-    except ImportError:  # a --baseline checkout from before the option groups
-        no_dense = {"dense": False}
+    from manifold import Precision, SaveAt
+
+    no_dense = {"save": SaveAt(dense=False)}
+    ts = np.linspace(0.0, 20.0, 101)
+    grid = {"save": SaveAt(t_eval=ts, dense=False)}
     chain, h0, w0 = start(n)
     starts = [start(n, seed, chain)[1:] for seed in range(STARTS)]
 
@@ -100,7 +106,10 @@ def measure(n: int, rounds: int) -> dict[str, float]:
              "T = 10, dense": (call(10.0), 20, 1), "T = 10, no dense": (call(10.0, **no_dense), 20, 1),
              "T = 10, bare heyoka": (bare(chain, h0, w0, 10.0), 20, 1),
              "T = 200, no dense": (call(200.0, **no_dense), 2, 1),
-             "T = 200, bare heyoka": (bare(chain, h0, w0, 200.0), 2, 1)}
+             "T = 200, bare heyoka": (bare(chain, h0, w0, 200.0), 2, 1),
+             "T = 20, 101 samples": (call(20.0, **grid), 10, 1), "T = 20, bare grid": (bare(chain, h0, w0, ts), 10, 1),
+             "... at tol 1e-10": (call(20.0, **grid, precision=Precision(tol=1e-10)), 10, 1),
+             "... bare at tol 1e-10": (bare(chain, h0, w0, ts, 1e-10), 10, 1)}
     best = {name: np.inf for name in cases}
     for run, _, _ in cases.values():
         run()  # compiles and caches outside the timing
@@ -181,7 +190,9 @@ def breakdown(n: int, rounds: int) -> dict[str, float]:
 def derived(m: dict[str, float]) -> dict[str, float]:
     return {"share of a T = 10 call in heyoka (dense)": m["T = 10, bare heyoka"] / m["T = 10, dense"],
             "share of a T = 10 call in heyoka (no dense)": m["T = 10, bare heyoka"] / m["T = 10, no dense"],
-            "T = 200 call / bare heyoka": m["T = 200, no dense"] / m["T = 200, bare heyoka"]}
+            "T = 200 call / bare heyoka": m["T = 200, no dense"] / m["T = 200, bare heyoka"],
+            "T = 20 grid call / bare propagate_grid": m["T = 20, 101 samples"] / m["T = 20, bare grid"],
+            "... at tol 1e-10": m["... at tol 1e-10"] / m["... bare at tol 1e-10"]}
 
 
 def side_by_side(n: int, rounds: int, baseline: Path) -> None:
