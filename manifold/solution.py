@@ -353,14 +353,18 @@ class GeodesicSolution:
         """Record the ``t_eval`` times inside the segment just integrated; return how many are done.
 
         ``adv`` is the stepper's :class:`~manifold.steppers.Advance`: its samples, if it was given the grid's
-        times from ``done`` on, else its dense output evaluated there; ``point_velocity`` maps states ``(m, 2k)``
-        to points and embedded velocities ``(m, N)`` each; ``sign`` is the
-        direction of integration.
+        times from ``done`` on (as many as it reached), else its dense output evaluated at the times up to where it
+        stopped; ``point_velocity`` maps states ``(m, 2k)`` to points and embedded velocities ``(m, N)`` each;
+        ``sign`` is the direction of integration.
         """
-        upto = int(np.searchsorted(sign * grid, sign * float(adv.t), side="right"))
-        if upto <= done or (adv.dense is None and adv.samples is None):
+        if adv.samples is not None:  # counted, not compared with adv.t: the times were reached in the working precision
+            upto, states = done + len(adv.samples), adv.samples
+        else:
+            upto = int(np.searchsorted(sign * grid, sign * float(adv.t), side="right"))
+            states = adv.dense(grid[done:upto]) if upto > done and adv.dense is not None else None
+        if upto <= done or states is None:
             return done
-        p, v = point_velocity(adv.samples[: upto - done] if adv.samples is not None else adv.dense(grid[done:upto]))
+        p, v = point_velocity(states)
         if self.points is None or self.velocities is None:  # the first grid times: allocate both
             self.points = np.empty((len(grid), p.shape[1]), dtype=p.dtype)
             self.velocities = np.empty_like(self.points)
