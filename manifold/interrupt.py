@@ -9,7 +9,8 @@ about :data:`CHUNK_SECONDS` each, and looks for a Ctrl-C between them and after
 every step a callback runs (a flag set by a temporary SIGINT handler: an
 exception raised inside a step callback could leave half of a step recorded).
 Chunks change no digit: a Taylor step depends only on the state it starts from,
-and events and cooldowns live in the integrator (:func:`propagate_grid` excepted, by rounding: see there).  The solvers then stop with
+and events and cooldowns live in the integrator.  :func:`propagate_grid` runs in one call with a step
+callback that reads the flag instead (see there).  The solvers then stop with
 what they computed and raise :class:`SolveInterrupted`, a ``KeyboardInterrupt``
 that carries it.
 
@@ -140,82 +141,70 @@ def propagate_until(ta: Any, t_limit: Any, *, callback: Callable[[Any], bool] | 
     Returns ``(outcome, steps, stop)``: heyoka's outcome of the last chunk, the steps of all of them, and
     :data:`INTERRUPTED` if Ctrl-C stopped the propagation, :data:`BUDGET` if ``max_steps`` did, else ``None``.
     """
-    def chunk(size: int, stepped: Callable[[Any], bool] | None) -> tuple[Any, int]:
-        outcome, _, _, steps, *_ = ta.propagate_until(t_limit, callback=stepped, write_tc=write_tc, max_steps=size)
-        return outcome, steps
-
-    return _in_chunks(chunk, callback, max_steps)
-
-
-def propagate_grid(ta: Any, grid: NDArray, *, callback: Callable[[Any], bool] | None = None,
-                   max_steps: int | None = None) -> tuple[Any, int, str | None, NDArray]:
-    """``ta.propagate_grid`` over ``grid`` in chunks of steps, as :func:`propagate_until` runs ``propagate_until``.
-
-    heyoka evaluates the states at the grid's times on each step's Taylor polynomials, in C++: no Python runs per
-    step unless a ``callback`` is given.  ``grid`` holds times from ``ta.time`` on, in integration order (repeats
-    allowed), and its last time is where the run ends: the steps are those of ``propagate_until(grid[-1])``, since
-    heyoka clamps a step only at the grid's end.  Each chunk restarts the grid at the time reached (heyoka wants the
-    grid to begin there), so Ctrl-C, ``max_steps`` and events stop it as they stop :func:`propagate_until`.  That
-    restart drops the low half of heyoka's double-length time (the grid's first time is one float): the samples
-    after it move by rounding (1e-16 a restart, grown as any rounding error by the motion's instability).
-
-    Returns ``(outcome, steps, stop, states)`` as :func:`propagate_until` and the states at the grid's times that the
-    run reached, ``states[j]`` at ``grid[j]`` (``len(states) <= len(grid)``; all of them if it reached the end).
-    """
-    grid = np.asarray(grid)
-    if grid.ndim != 1 or len(grid) == 0:
-        raise ValueError(f"grid must be a non-empty 1-d array of times, got shape {grid.shape}")
-    # heyoka wants a strictly monotonic grid: integrate over the distinct times, then copy rows to repeats
-    distinct = np.concatenate([[True], grid[1:] != grid[:-1]])
-    times, row = grid[distinct], np.cumsum(distinct) - 1
-    states = np.empty((len(times), len(ta.state)), dtype=ta.state.dtype)
-    filled = 0  # the states at times[:filled] are known
-
-    def chunk(size: int, stepped: Callable[[Any], bool] | None) -> tuple[Any, int]:
-        nonlocal filled
-        at_time()
-        if filled == len(times):
-            return hy.taylor_outcome.time_limit, 0
-        outcome, _, _, steps, _, out = ta.propagate_grid(np.concatenate([[ta.time], times[filled:]]),
-                                                         callback=stepped, max_steps=size)
-        # a run stopped early returns only the rows of the times it passed (its first row is the grid's start)
-        states[filled : filled + len(out) - 1] = out[1:]
-        filled += len(out) - 1
-        return outcome, steps
-
-    def at_time() -> None:
-        """The state at the integrator's time is its own (the start, or where a chunk stopped on a grid time)."""
-        nonlocal filled
-        if filled < len(times) and times[filled] == ta.time:
-            states[filled] = ta.state
-            filled += 1
-
-    outcome, steps, stop = _in_chunks(chunk, callback, max_steps)
-    at_time()
-    return outcome, steps, stop, states[row[row < filled]]
-
-
-def _in_chunks(chunk: Callable[[int, Callable[[Any], bool] | None], tuple[Any, int]],
-               callback: Callable[[Any], bool] | None, max_steps: int | None) -> tuple[Any, int, str | None]:
-    """Run ``chunk(size, stepped)`` (at most ``size`` steps, ``stepped`` heyoka's step callback or ``None``;
-    ``(outcome, steps)``) until it ends on other than heyoka's step limit, Ctrl-C or ``max_steps``: the chunking of
-    :func:`propagate_until` and :func:`propagate_grid`."""
     with interruptible() as pressed:
         def stepped(ta: Any) -> bool:
             go_on = callback(ta) if callback is not None else True
             return bool(go_on) and not pressed()
 
-        total, size = 0, FIRST_CHUNK
+        total, chunk = 0, FIRST_CHUNK
         while True:
             if max_steps is not None and total >= max_steps:
                 return hy.taylor_outcome.step_limit, total, BUDGET
             t0 = time.perf_counter()
-            outcome, steps = chunk(size if max_steps is None else min(size, max_steps - total),
-                                   None if callback is None else stepped)
+            size = chunk if max_steps is None else min(chunk, max_steps - total)
+            outcome, _, _, steps, *_ = ta.propagate_until(t_limit, callback=None if callback is None else stepped,
+                                                          write_tc=write_tc, max_steps=size)
             total += steps
             if pressed():
                 return outcome, total, INTERRUPTED
             if outcome != hy.taylor_outcome.step_limit:
                 return outcome, total, None
             elapsed = time.perf_counter() - t0  # sizes the next chunk only: the steps do not depend on it
-            size = max(16, min(10**7, int(size * CHUNK_SECONDS / max(elapsed, 1e-6))))
+            chunk = max(16, min(10**7, int(chunk * CHUNK_SECONDS / max(elapsed, 1e-6))))
+
+
+def propagate_grid(ta: Any, grid: NDArray, *, callback: Callable[[Any], bool] | None = None,
+                   max_steps: int | None = None) -> tuple[Any, int, str | None, NDArray]:
+    """``ta.propagate_grid`` over ``grid``, stopping cleanly on Ctrl-C, as :func:`propagate_until` stops.
+
+    heyoka evaluates the states at the grid's times on each step's Taylor polynomials, in C++.  ``grid`` holds times
+    from ``ta.time`` on, in integration order (repeats allowed), and its last time is where the run ends: the steps
+    are those of ``propagate_until(grid[-1])``, since heyoka clamps a step only at the grid's end.  It runs as one
+    heyoka call, with a step callback that reads the Ctrl-C flag (about 0.1 us a step), not in chunks: a grid
+    restarted where a chunk stopped would begin at a float64 time, without the low half of heyoka's double-length
+    time, and the samples would then depend on how the machine's speed sized the chunks.
+
+    Returns ``(outcome, steps, stop, states)``: heyoka's outcome and steps, :data:`INTERRUPTED` if Ctrl-C stopped
+    the run, :data:`BUDGET` if ``max_steps`` did, else ``None``, and the states at the grid's times that the run
+    reached, ``states[j]`` at ``grid[j]`` (``len(states) <= len(grid)``; all of them if it reached the end).
+    """
+    grid = np.asarray(grid)
+    if grid.ndim != 1 or len(grid) == 0:
+        raise ValueError(f"grid must be a non-empty 1-d array of times, got shape {grid.shape}")
+    if max_steps is not None and max_steps < 1:
+        return hy.taylor_outcome.step_limit, 0, BUDGET, np.empty((0, len(ta.state)), dtype=ta.state.dtype)
+    # heyoka wants a strictly monotonic grid that begins at the integrator's time: integrate over the distinct
+    # times after it, then copy rows to repeats and to times at the start
+    distinct = np.concatenate([[True], grid[1:] != grid[:-1]])
+    times, row = grid[distinct], np.cumsum(distinct) - 1
+    at_start = int(times[0] == ta.time)
+    start = np.array(ta.state)
+    with interruptible() as pressed:
+        def stepped(ta: Any) -> bool:
+            go_on = callback(ta) if callback is not None else True
+            return bool(go_on) and not pressed()
+
+        outcome, _, _, steps, _, out = ta.propagate_grid(np.concatenate([[ta.time], times[at_start:]]),
+                                                         callback=stepped, max_steps=max_steps or 0)
+        # a run stopped early returns only the rows of the times it passed (its first row is the grid's start)
+        states = np.concatenate([start[None, :]] * at_start + [out[1:]])
+        if len(states) < len(times) and times[len(states)] == ta.time:  # stopped on a grid time: the state there
+            states = np.concatenate([states, np.array(ta.state)[None, :]])
+        if pressed():
+            stop: str | None = INTERRUPTED
+        elif max_steps is not None and outcome == hy.taylor_outcome.step_limit:
+            stop = BUDGET
+        else:
+            stop = None
+    filled = len(states)
+    return outcome, steps, stop, states[row[row < filled]]
