@@ -60,7 +60,8 @@ def lyapunov_exponent(
     t_final
         Length of the estimate, ``> 0``.
     k
-        How many exponents (largest first): up to ``2 (n - 2) - 2`` perpendicular, ``2 (n - 2)`` tangent.
+        How many exponents (in Gram-Schmidt order, largest first only as ``t_final`` grows:
+        :mod:`manifold.lyapunov`): up to ``2 (n - 2) - 2`` perpendicular, ``2 (n - 2)`` tangent.
     interval
         Time between renormalisations.
     deviations

@@ -8,6 +8,8 @@ import re
 import heyoka as hy
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from linkage import Chain
 from linkage.constraints import ChainSystem
@@ -93,6 +95,31 @@ def test_n4_exponent_is_positive_converged_and_paired():
     assert abs(lam - half) <= 0.25 * lam
     assert abs(r.exponents[0] + r.exponents[1]) <= 0.01 * lam
     assert r.exponents[0] > r.exponents[1]
+
+
+@settings(max_examples=8)
+@given(seed=st.integers(0, 2**32 - 2), interval=st.floats(0.2, 2.5))
+def test_finite_time_exponents_are_the_growth_rates_of_volumes(seed, interval):
+    """At t = 5 the estimates are those of the QR factors of ``Phi(t) Y_0``: the same with one renormalisation as
+    with many; and for ``k`` the whole perpendicular space (n = 4: 2), their sum, the growth rate of its volume, is
+    the same from every seed's initial deviations."""
+    chain = Chain(4, 2.6)
+    h, v = unit_speed_start(chain, [0.3, 0.5], [1.0, -0.4])
+    once = lyapunov_exponent(chain, h, v, 5.0, k=2, interval=5.0, seed=seed)
+    often = lyapunov_exponent(chain, h, v, 5.0, k=2, interval=interval, seed=seed)
+    other = lyapunov_exponent(chain, h, v, 5.0, k=2, interval=5.0, seed=seed + 1)
+    assert np.abs(often.exponents - once.exponents).max() <= 1e-9
+    assert abs(once.exponents.sum() - other.exponents.sum()) <= 1e-9
+
+
+def test_finite_time_exponents_come_in_gram_schmidt_order_not_sorted():
+    """The module docstring's example: a first deviation that starts near the contracting direction grows less,
+    over t = 5, than the second one's share of the area, and the estimates are returned as they are."""
+    chain = Chain(4, 2.6)
+    h, v = unit_speed_start(chain, [0.3, 0.5], [1.0, -0.4])
+    r = lyapunov_exponent(chain, h, v, 5.0, k=2, seed=25)
+    assert r.exponents == pytest.approx([-0.288, 0.299], abs=1e-3)
+    assert r.exponent == r.exponents[0]
 
 
 def test_n4_exponent_matches_the_separation_of_two_trajectories():
