@@ -32,13 +32,16 @@ from __future__ import annotations
 
 import argparse
 import collections
+import cProfile
 import os
+import pstats
 import resource
 import signal
 import threading
 import time
 import traceback
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -48,6 +51,7 @@ from linkage.constraints import HingeConstraints
 from linkage.ensemble import free_motions
 from linkage.motion import free_motion, lyapunov_exponent
 from manifold import Precision, SaveAt
+from manifold.progress import ProgressUpdate, reporting
 
 from .starts import chart_start
 
@@ -86,21 +90,40 @@ def solved_check(chain: Chain, motion: Any, v0: np.ndarray) -> None:
         raise Wrong(f"closure {chain.closure_residual(h):.2g}")
 
 
-_CHAINS: dict[str, Chain] = {}
+@dataclass(frozen=True)
+class Case:
+    """Case ``k`` of a family: its draws come from its own seed, so that any case can be replayed alone."""
+
+    family: str
+    seed: int
+    k: int
+
+    def rng(self) -> np.random.Generator:
+        return np.random.default_rng([self.seed, list(CASES).index(self.family), 0, self.k])
+
+    def chain_rng(self) -> np.random.Generator:
+        """The draws of the chain shared by this case's block of :data:`PER_CHAIN` cases."""
+        return np.random.default_rng([self.seed, list(CASES).index(self.family), 1, self.k // PER_CHAIN])
 
 
-def shared_chain(family: str, k: int, rng: np.random.Generator) -> Chain:
-    """A new chain (with an atlas, ``n >= 4`` for curvature) every :data:`PER_CHAIN` cases of ``family``."""
-    if k % PER_CHAIN == 0 or family not in _CHAINS:
+_CHAINS: dict[tuple[str, int, int], Chain] = {}
+
+
+def shared_chain(case: Case) -> Chain:
+    """A new chain (with an atlas, ``n >= 4`` for curvature) every :data:`PER_CHAIN` cases of the family."""
+    key = (case.family, case.seed, case.k // PER_CHAIN)
+    if key not in _CHAINS:
+        rng = case.chain_rng()
         chain = random_chain(rng, spread=False)
-        while family == "curvature" and chain.n < 4:
+        while case.family == "curvature" and chain.n < 4:
             chain = random_chain(rng, spread=False)
-        _CHAINS[family] = chain
-    return _CHAINS[family]
+        _CHAINS.clear()  # one chain at a time: its atlas and compiled functions are what is shared
+        _CHAINS[key] = chain
+    return _CHAINS[key]
 
 
-def case_chart(rng: np.random.Generator, k: int) -> bool:
-    chain = shared_chain("chart", k, rng)
+def case_chart(rng: np.random.Generator, case: Case) -> bool:
+    chain = shared_chain(case)
     atlas = chain.atlas()
     i = int(rng.integers(len(atlas.charts)))
     a = np.concatenate([rng.uniform(-np.pi / 2, np.pi / 2, chain.dim - 1), rng.uniform(-np.pi, np.pi, 1)])
@@ -187,8 +210,8 @@ def case_ensemble(rng: np.random.Generator) -> bool:
     return bool(np.all(ens.success))
 
 
-def case_curvature(rng: np.random.Generator, k: int) -> bool:
-    chain = shared_chain("curvature", k, rng)
+def case_curvature(rng: np.random.Generator, case: Case) -> bool:
+    chain = shared_chain(case)
     h0, _ = chart_start(chain, rng)
     p = chain.to_point(h0)
     project = HingeConstraints(chain).project_velocity
@@ -229,73 +252,132 @@ def case_precision(rng: np.random.Generator) -> bool:
     return True
 
 
-CASES: dict[str, Callable[[np.random.Generator, int], bool]] = {
+CASES: dict[str, Callable[[np.random.Generator, Case], bool]] = {
     "chart": case_chart,
-    "bad input": lambda rng, k: case_bad_input(rng),
-    "hinges": lambda rng, k: case_motion(rng, "hinges", float(rng.uniform(0.1, 3))),
-    "charts": lambda rng, k: case_motion(rng, "charts", float(rng.uniform(0.1, 3))),
-    "any lengths": lambda rng, k: case_any_lengths(rng),
-    "long": lambda rng, k: case_motion(rng, "hinges", float(rng.uniform(20, 50))),
-    "ensemble": lambda rng, k: case_ensemble(rng),
+    "bad input": lambda rng, case: case_bad_input(rng),
+    "hinges": lambda rng, case: case_motion(rng, "hinges", float(rng.uniform(0.1, 3))),
+    "charts": lambda rng, case: case_motion(rng, "charts", float(rng.uniform(0.1, 3))),
+    "any lengths": lambda rng, case: case_any_lengths(rng),
+    "long": lambda rng, case: case_motion(rng, "hinges", float(rng.uniform(20, 50))),
+    "ensemble": lambda rng, case: case_ensemble(rng),
     "curvature": case_curvature,
-    "lyapunov": lambda rng, k: case_lyapunov(rng),
-    "precision": lambda rng, k: case_precision(rng),
+    "lyapunov": lambda rng, case: case_lyapunov(rng),
+    "precision": lambda rng, case: case_precision(rng),
 }
+
+
+def run_case(case: Case) -> str:
+    """The outcome of one case: ``success``, ``honest failure``, or the name of what went wrong (``Wrong`` and
+    ``KeyboardInterrupt`` pass through to the caller)."""
+    try:
+        return "success" if CASES[case.family](case.rng(), case) else "honest failure"
+    except (ValueError, TypeError, ArithmeticError, RuntimeError) as e:
+        return f"refused ({type(e).__name__}): {str(e)[:300]}"
+    except (Wrong, KeyboardInterrupt):
+        raise
+    except Exception as e:  # noqa: BLE001 - an unexpected kind of error is itself a finding
+        return f"OTHER {type(e).__name__}: {traceback.format_exception_only(e)[-1][:300]}"
+
+
+def replay(case: Case, profile: int) -> None:
+    """Run one case alone, without a timer: its outcome, CPU and wall time, and the solves' steps and segments
+    (from their progress reports); with ``profile``, cProfile's ``profile`` costliest functions."""
+    solves: list[ProgressUpdate] = []
+    segments = collections.Counter[int]()
+
+    def count(update: ProgressUpdate) -> None:
+        if update.kind == "solve":
+            segments[len(solves)] += 1
+        elif update.kind == "done":
+            solves.append(update)
+
+    profiler = cProfile.Profile() if profile else None
+    cpu, wall = time.process_time(), time.perf_counter()
+    with reporting(count):
+        if profiler is not None:
+            profiler.enable()
+        try:
+            outcome = run_case(case)
+        except Wrong as e:
+            outcome = f"WRONG ANSWER AS SUCCESS: {e}"
+        finally:
+            if profiler is not None:
+                profiler.disable()
+    cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+    print(f"{case.family} case {case.k} (seed {case.seed}): {outcome}; {cpu:.2f} s CPU, {wall:.2f} s wall")
+    for j, u in enumerate(solves):
+        rate = u.n_steps / abs(u.t) if u.t else float("nan")
+        print(f"    solve {j}: t = {u.t:.6g} of {u.t_final:g}, {u.n_steps} steps ({rate:.3g} per unit time), "
+              f"{u.n_switches} switches, {segments[j]} segments: {u.message[:200]}")
+    if profiler is not None:
+        pstats.Stats(profiler).sort_stats("tottime").print_stats(profile)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--count", type=int, default=20000)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--hang", type=float, default=60.0)
+    ap.add_argument("--hang", type=float, default=60.0, help="CPU seconds after which a case is stopped")
     ap.add_argument("--families", default=",".join(SHARES), help="comma-separated, of: " + ", ".join(SHARES))
+    ap.add_argument("--case", type=int, default=None,
+                    help="replay this case of the one family given, alone and without a timer")
+    ap.add_argument("--profile", type=int, default=0, metavar="N", help="with --case: cProfile's N costliest functions")
     args = ap.parse_args()
     families = args.families.split(",")
     unknown = set(families) - set(SHARES)
     if unknown:
         ap.error(f"unknown families {sorted(unknown)}: choose from {list(SHARES)}")
+    if args.case is not None:
+        if len(families) != 1:
+            ap.error("--case replays a case of one family: give one in --families")
+        replay(Case(families[0], args.seed, args.case), args.profile)
+        return
     counts = {name: max(1, round(SHARES[name] * args.count / 20000)) for name in families}
     tally: dict[str, collections.Counter] = {name: collections.Counter() for name in CASES}
     examples: dict[str, list[str]] = collections.defaultdict(list)
     t_start = time.perf_counter()
     for name, count in counts.items():
-        rng = np.random.default_rng([args.seed, list(CASES).index(name)])
         t0 = time.perf_counter()
+        costs: list[tuple[float, int]] = []
         for k in range(count):
             done = threading.Event()
+            cpu = time.process_time()
 
-            def alarm() -> None:
-                if not done.wait(args.hang):
-                    os.kill(os.getpid(), signal.SIGINT)
+            def alarm(cpu0: float = cpu) -> None:  # CPU time, not wall: other jobs on the machine do not count
+                while not done.wait(0.5):
+                    if time.process_time() - cpu0 > args.hang:
+                        os.kill(os.getpid(), signal.SIGINT)
+                        return
 
             threading.Thread(target=alarm, daemon=True).start()
             try:
-                tally[name]["success" if CASES[name](rng, k) else "honest failure"] += 1
+                outcome = run_case(Case(name, args.seed, k))
+                kind = outcome.split(":")[0]
+                tally[name][kind] += 1
+                if kind.startswith("OTHER") or (kind.startswith("refused") and name in ("any lengths", "chart",
+                                                                                         "curvature")):
+                    examples[name].append(f"case {k}: {outcome}")  # these starts are valid: a refusal is news
             except Wrong as e:
                 tally[name]["WRONG ANSWER AS SUCCESS"] += 1
                 examples[name].append(f"case {k}: {e}")
             except KeyboardInterrupt:  # stopped by the timer: longer than --hang (not necessarily past its budget)
                 tally[name]["SLOW"] += 1
-                examples[name].append(f"case {k}: ran past {args.hang} s")
-            except (ValueError, TypeError, ArithmeticError, RuntimeError) as e:
-                tally[name][f"refused ({type(e).__name__})"] += 1
-                if name in ("any lengths", "chart", "curvature"):  # these starts are valid: a refusal is news
-                    examples[name].append(f"case {k}: {type(e).__name__}: {str(e)[:160]}")
-            except Exception as e:  # noqa: BLE001 - an unexpected kind of error is itself a finding
-                tally[name][f"OTHER {type(e).__name__}"] += 1
-                examples[name].append(f"case {k}: {traceback.format_exception_only(e)[-1][:200]}")
+                examples[name].append(f"case {k}: ran past {args.hang} s of CPU")
             finally:
                 done.set()
+            costs.append((time.process_time() - cpu, k))
         print(f"{name}: {count} cases in {time.perf_counter() - t0:.0f} s: "
               + ", ".join(f"{k} {v}" for k, v in sorted(tally[name].items())), flush=True)
         for line in examples[name][:5]:
             print(f"    {line}", flush=True)
+        print("    costliest (CPU s, case): " + ", ".join(f"{c:.1f} ({k})" for c, k in sorted(costs)[::-1][:5]),
+              flush=True)
     total = sum(counts.values())
     wrong = sum(c["WRONG ANSWER AS SUCCESS"] for c in tally.values())
     hangs = sum(c["SLOW"] for c in tally.values())
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB on Linux
     print(f"total {total} cases in {time.perf_counter() - t_start:.0f} s: wrong answers returned as success {wrong}, "
-          f"runs stopped after {args.hang:g} s {hangs}, peak RSS {rss:.2f} GiB")
+          f"runs stopped after {args.hang:g} s of CPU {hangs}, peak RSS {rss:.2f} GiB")
 
 
 if __name__ == "__main__":
