@@ -38,6 +38,7 @@ import heyoka as hy
 import numpy as np
 from numpy.typing import NDArray
 
+from .budget import out_of_time
 from .solution import SolveStatus
 
 __all__ = ["BUDGET", "CHUNK_SECONDS", "INTERRUPTED", "Listener", "SolveInterrupted", "interruptible", "propagate_grid",
@@ -49,7 +50,7 @@ CHUNK_SECONDS = 0.1
 FIRST_CHUNK = 64
 #: The failure message of an interrupted propagation.
 INTERRUPTED = "interrupted (KeyboardInterrupt)"
-#: The failure message of a propagation stopped by its budget of steps (:mod:`manifold.budget`).
+#: The failure message of a propagation stopped by its budget of steps or CPU time (:mod:`manifold.budget`).
 BUDGET = "budget spent"
 
 
@@ -136,7 +137,8 @@ def propagate_until(ta: Any, t_limit: Any, *, callback: Callable[[Any], bool] | 
     the propagation, and without one the next chunk boundary does.  So whatever a callback records stays whole,
     and the state is that after the last accepted step.
 
-    With ``max_steps`` (a :mod:`manifold.budget` allowance) it takes at most that many steps.
+    With ``max_steps`` (a :mod:`manifold.budget` allowance) it takes at most that many steps, and it stops between
+    chunks once the budget's CPU seconds are spent (:func:`manifold.budget.out_of_time`).
 
     Returns ``(outcome, steps, stop)``: heyoka's outcome of the last chunk, the steps of all of them, and
     :data:`INTERRUPTED` if Ctrl-C stopped the propagation, :data:`BUDGET` if ``max_steps`` did, else ``None``.
@@ -148,7 +150,7 @@ def propagate_until(ta: Any, t_limit: Any, *, callback: Callable[[Any], bool] | 
 
         total, chunk = 0, FIRST_CHUNK
         while True:
-            if max_steps is not None and total >= max_steps:
+            if max_steps is not None and (total >= max_steps or out_of_time()):
                 return hy.taylor_outcome.step_limit, total, BUDGET
             t0 = time.perf_counter()
             size = chunk if max_steps is None else min(chunk, max_steps - total)

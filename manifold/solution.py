@@ -78,7 +78,7 @@ class SolveStatus(enum.Enum):
     CONSTRAINT_CHECK_FAILED = "the state left the constraints"
     CARRIED_CHECK_FAILED = "a quantity carried along the geodesic left its bound"
     INTERRUPTED = "interrupted by Ctrl-C (KeyboardInterrupt)"
-    BUDGET_EXCEEDED = "the budget of steps or of dense output is spent"
+    BUDGET_EXCEEDED = "the budget of steps, of dense output or of CPU time is spent"
 
 
 class GeodesicIntegrationError(RuntimeError):

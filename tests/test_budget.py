@@ -1,5 +1,6 @@
-"""Bounded work and memory (``manifold.budget``): a solve stops where its budget of steps or of dense-output bytes is
-spent, with its partial result and a message that names the budget and the need; the default is generous."""
+"""Bounded work and memory (``manifold.budget``): a solve stops where its budget of steps, of dense-output bytes or
+of CPU seconds is spent, with its partial result and a message that names the budget and the need; the default is
+generous."""
 
 from __future__ import annotations
 
@@ -12,13 +13,15 @@ from linkage.sampling import sample_starts
 from manifold import GeodesicIntegrationError, SaveAt, SolveStatus
 from manifold.budget import DEFAULT_BUDGET, Budget
 
+from .conftest import unit_speed_start
+
 CHAIN = Chain(4, 2.6)
 H, V = sample_starts(CHAIN, 1, 0.5, np.random.default_rng(0))
 
 
 @pytest.mark.parametrize("method", ["hinges", "charts"])
 def test_a_step_budget_stops_the_solve_with_its_partial_result(method):
-    with pytest.raises(GeodesicIntegrationError, match=r"the budget of 500 steps .* would take about") as info:
+    with pytest.raises(GeodesicIntegrationError, match=r"the budget of 500 steps, .* would take about") as info:
         free_motion(CHAIN, H[0], V[0], 1000.0, method=method, budget=Budget(steps=500))
     sol = info.value.solution
     assert sol.status is SolveStatus.BUDGET_EXCEEDED and sol.n_steps == 500
@@ -41,9 +44,32 @@ def test_a_memory_budget_limits_dense_output_and_the_end_state_needs_none(method
     assert end.success and end.n_steps > 2000
 
 
+@pytest.mark.parametrize("method", ["hinges", "charts"])
+def test_a_cpu_time_budget_stops_a_solve_that_steps_alone_would_let_run_for_hours(method):
+    """Two motions within the step budget only after hours: masses 1e-8..1e8 (the light hinge whips, millions of
+    hinge steps per unit time) and a chain within 1e-9 of stretched (a chart solve's 1e5 steps and thousands of
+    switches per unit time).  A budget of 0.2 CPU seconds stops them with their partial result, checked like
+    any other, and the message names the seconds."""
+    if method == "hinges":
+        chain = Chain(4, 2.6, hinge_masses=[1e-8, 1.0, 1e8])
+        h, v = unit_speed_start(chain, [0.3, 0.5], [1.0, -0.4])
+    else:
+        chain = Chain(5, 5 - 1e-9)
+        h, v = unit_speed_start(chain, [0.3, 0.5, -0.2], [1.0, -0.4, 0.7])
+    with pytest.raises(GeodesicIntegrationError, match=r"and 0.2 s of CPU is spent at t = .* s of CPU here") as info:
+        free_motion(chain, h, v, 100.0, method=method, budget=Budget(seconds=0.2), save=SaveAt(dense=False))
+    sol = info.value.solution
+    assert sol.status is SolveStatus.BUDGET_EXCEEDED
+    assert 0 < float(sol.t_reached) < 100 and 0 < sol.n_steps < 10**8
+    assert sol.relative_energy_error <= 1e-9
+
+
 def test_the_default_budget_and_bad_budgets():
     assert DEFAULT_BUDGET.steps == 10**8 and DEFAULT_BUDGET.dense_bytes == 2 * 2**30
-    for bad in ({"steps": 0}, {"dense_bytes": -1}, {"steps": 1.5}, {"steps": True}):
+    assert DEFAULT_BUDGET.seconds == 300
+    for bad in ({"steps": 0}, {"dense_bytes": -1}, {"steps": 1.5}, {"steps": True}, {"seconds": 0},
+                {"seconds": -1.0}, {"seconds": float("nan")}, {"seconds": float("inf")}, {"seconds": "60"},
+                {"seconds": True}):
         with pytest.raises(ValueError, match="Budget"):
             Budget(**bad)
     with pytest.raises(TypeError, match="budget must be a manifold.budget.Budget"):
