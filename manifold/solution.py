@@ -287,6 +287,8 @@ class GeodesicSolution:
     status: SolveStatus = SolveStatus.SUCCESS
     message: str = ""
     segments: list[Segment] = field(default_factory=list, repr=False)
+    _segments_counted: int = field(default=0, init=False, repr=False, compare=False)  # by n_steps, so far
+    _steps_counted: int = field(default=0, init=False, repr=False, compare=False)
     switches: list[ChartSwitch] = field(default_factory=list, repr=False)
     energy_times: list = field(default_factory=list, repr=False)
     energies: list = field(default_factory=list, repr=False)
@@ -321,7 +323,12 @@ class GeodesicSolution:
     @property
     def n_steps(self) -> int:
         """Accepted steps of the stepper, over all segments."""
-        return sum(s.n_steps for s in self.segments)
+        # counted on from the segments added since the last call: the solvers ask after each segment, and a long
+        # chart solve has 1e5 segments (a sum over all of them each time made the loop quadratic)
+        for segment in self.segments[self._segments_counted:]:
+            self._segments_counted += 1
+            self._steps_counted += segment.n_steps
+        return self._steps_counted
 
     @property
     def dense_nbytes(self) -> int:

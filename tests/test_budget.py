@@ -87,3 +87,27 @@ def test_batch_sizes_beyond_what_simd_makes_useful_are_refused():
     with pytest.raises(ValueError, match=f"batch_size=1000 is beyond what SIMD makes useful.*{hy.recommended_simd_size()}"):
         free_motions(CHAIN, H2, V2, 1.0, batch_size=1000)
     assert free_motions(CHAIN, H2, V2, 1.0, batch_size=MAX_BATCH_LANES * hy.recommended_simd_size()).success.all()
+
+
+def test_a_solves_step_count_reads_each_segment_once():
+    """The solvers ask for the step count after every segment, and a chart solve near the stretched chain has 1e5
+    of them (3,000 chart switches per unit time at ``L = n - 1e-9``): the count goes on from the new segments,
+    where a sum over all of them each time made the loop quadratic in its segments."""
+    from manifold.solution import GeodesicSolution
+
+    reads = []
+
+    class CountedSegment:
+        def __init__(self, steps: int) -> None:
+            self.steps = steps
+
+        @property
+        def n_steps(self) -> int:
+            reads.append(1)
+            return self.steps
+
+    sol = GeodesicSolution(None, float, "test", (0.0, 1.0), {})
+    for k in range(1, 1001):
+        sol.segments.append(CountedSegment(k))
+        assert sol.n_steps == k * (k + 1) // 2
+    assert len(reads) == 1000
