@@ -1,6 +1,7 @@
 """Fuzz the library by families: is a wrong answer ever returned as a success, does anything hang, how much memory?
 
-Run ``python -m benchmarks.reliability_fuzz [--count 20000] [--seed 0] [--hang 60] [--families chart,...]``.  Cases are drawn from
+Run ``python -m benchmarks.reliability_fuzz [--count 20000] [--seed 0] [--hang 660] [--families chart,...]
+[--cases START:STOP | --case K [--profile N]]``.  Cases are drawn from
 families in fixed shares of ``--count`` (the cheap chart layer most, solves fewer); each is judged by numbers
 recomputed here from what the library returned, never by its own verdict:
 
@@ -22,10 +23,18 @@ recomputed here from what the library returned, never by its own verdict:
 * ``lyapunov``: ``lyapunov_exponent`` to T = 5 (k = 2): a success has a finite history and energy error 1e-9;
 * ``precision``: the hinge method in long double to T = 1, against float64 (1e-9) on success.
 
-A case is stopped (``SLOW``) if it runs longer than ``--hang`` seconds (a timer sends Ctrl-C, which the solvers
-honour): a run the budget would still allow, or a hang.  Prints per family: cases, successes, honest failures
-(a status, or a ``ValueError``/``TypeError`` where the input is bad), refusals of valid input, wrong answers
-returned as success, other exceptions, slow runs; and the peak RSS.  ``--count`` scales :data:`SHARES`.
+A case is stopped (``SLOW``) once it has spent ``--hang`` CPU seconds (a timer sends Ctrl-C, which the solvers
+honour; CPU, not wall time, so that other jobs on the machine do not count): by default :data:`HANG`, past what the
+default budget (:data:`manifold.budget.DEFAULT_BUDGET`, 300 CPU seconds a solve) allows, so a hang; with a smaller
+``--hang``, possibly a run the budget would still allow.  Prints per family: cases, successes, honest failures (a status, or a ``ValueError``/``TypeError``
+where the input is bad), refusals of valid input, wrong answers returned as success, other exceptions, slow runs,
+the costliest cases (CPU seconds, and each case above a tenth of ``--hang`` as it ends); and the peak RSS.
+``--count`` scales :data:`SHARES`.
+
+Each case draws from its own seed ``(seed, family, k)`` (the chart and curvature families' shared chain from
+``(seed, family, k // PER_CHAIN)``), so ``--families charts --case 18`` replays case 18 alone, without a timer,
+and prints its CPU time and each solve's steps, chart switches and segments (``--profile 20``: cProfile's 20
+costliest functions); ``--cases 0:125`` runs part of each family (to split a run over processes).
 """
 
 from __future__ import annotations
@@ -51,6 +60,7 @@ from linkage.constraints import HingeConstraints
 from linkage.ensemble import free_motions
 from linkage.motion import free_motion, lyapunov_exponent
 from manifold import Precision, SaveAt
+from manifold.budget import DEFAULT_BUDGET
 from manifold.progress import ProgressUpdate, reporting
 
 from .starts import chart_start
@@ -60,6 +70,10 @@ NO_DENSE = SaveAt(dense=False)  # the fuzz reads end states and energies only
 #: Cases per family at ``--count 20000`` (scaled with it), cheapest first: the families' costs differ by 1000x.
 SHARES = {"chart": 13290, "bad input": 5000, "ensemble": 80, "hinges": 500, "any lengths": 400, "curvature": 300,
           "charts": 250, "precision": 120, "lyapunov": 40, "long": 20}
+assert DEFAULT_BUDGET.seconds is not None
+#: Default ``--hang``: more CPU seconds than the default budget allows the two solves of a case (the most any runs),
+#: with a margin; a case stopped there escaped its budget.
+HANG = 2 * DEFAULT_BUDGET.seconds + 60
 #: Cases drawn on one chain (its atlas and compiled functions built once) in the chart and curvature families.
 PER_CHAIN = 20
 
@@ -317,8 +331,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--count", type=int, default=20000)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--hang", type=float, default=60.0, help="CPU seconds after which a case is stopped")
+    ap.add_argument("--hang", type=float, default=HANG, help=f"CPU seconds after which a case is stopped ({HANG:g})")
     ap.add_argument("--families", default=",".join(SHARES), help="comma-separated, of: " + ", ".join(SHARES))
+    ap.add_argument("--cases", type=lambda text: [int(x) if x else None for x in text.split(":")], default=[None],
+                    metavar="START:STOP", help="run only these case indices of each family (to split a run)")
     ap.add_argument("--case", type=int, default=None,
                     help="replay this case of the one family given, alone and without a timer")
     ap.add_argument("--profile", type=int, default=0, metavar="N", help="with --case: cProfile's N costliest functions")
@@ -339,7 +355,7 @@ def main() -> None:
     for name, count in counts.items():
         t0 = time.perf_counter()
         costs: list[tuple[float, int]] = []
-        for k in range(count):
+        for k in range(*slice(*args.cases).indices(count)):
             done = threading.Event()
             cpu = time.process_time()
 
@@ -352,27 +368,27 @@ def main() -> None:
             threading.Thread(target=alarm, daemon=True).start()
             try:
                 outcome = run_case(Case(name, args.seed, k))
-                kind = outcome.split(":")[0]
-                tally[name][kind] += 1
-                if kind.startswith("OTHER") or (kind.startswith("refused") and name in ("any lengths", "chart",
-                                                                                         "curvature")):
-                    examples[name].append(f"case {k}: {outcome}")  # these starts are valid: a refusal is news
             except Wrong as e:
-                tally[name]["WRONG ANSWER AS SUCCESS"] += 1
-                examples[name].append(f"case {k}: {e}")
+                outcome = f"WRONG ANSWER AS SUCCESS: {e}"
             except KeyboardInterrupt:  # stopped by the timer: longer than --hang (not necessarily past its budget)
-                tally[name]["SLOW"] += 1
-                examples[name].append(f"case {k}: ran past {args.hang} s of CPU")
+                outcome = f"SLOW: ran past {args.hang:g} s of CPU"
             finally:
                 done.set()
+            kind = outcome.split(":")[0]
+            tally[name][kind] += 1
+            if kind.startswith(("WRONG", "SLOW", "OTHER")) or (kind.startswith("refused") and name in (
+                    "any lengths", "chart", "curvature")):  # these starts are valid: a refusal is news
+                examples[name].append(f"case {k}: {outcome}")
             costs.append((time.process_time() - cpu, k))
-        print(f"{name}: {count} cases in {time.perf_counter() - t0:.0f} s: "
+            if costs[-1][0] > args.hang / 10:  # as it happens: a long family's slow cases before its end
+                print(f"    {name} case {k}: {costs[-1][0]:.1f} s CPU, {outcome[:120]}", flush=True)
+        print(f"{name}: {len(costs)} cases in {time.perf_counter() - t0:.0f} s: "
               + ", ".join(f"{k} {v}" for k, v in sorted(tally[name].items())), flush=True)
         for line in examples[name][:5]:
             print(f"    {line}", flush=True)
         print("    costliest (CPU s, case): " + ", ".join(f"{c:.1f} ({k})" for c, k in sorted(costs)[::-1][:5]),
               flush=True)
-    total = sum(counts.values())
+    total = sum(sum(c.values()) for c in tally.values())
     wrong = sum(c["WRONG ANSWER AS SUCCESS"] for c in tally.values())
     hangs = sum(c["SLOW"] for c in tally.values())
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB on Linux
