@@ -8,13 +8,15 @@ between chunks of steps (:func:`manifold.interrupt.propagate_until`) once :func:
 budget is spent the solve stops with what it computed (status ``BUDGET_EXCEEDED``), and the message names the
 budget and the estimated need, extrapolated from the time reached.
 
-Steps alone do not bound the time: a step's cost differs 80-fold between solvers (measured in CPU time on one
-machine: 9-37 us for the hinge method at n = 4..7, 240-810 us for the chart method in Sundman's time, twice to
-four times that in long double), so 1e8 steps are 15 minutes of the one and a day of the other.  A chart solve
-within 1e-9 of the stretched chain (``L = n - 1e-9``: about 2e5 steps and 3,000 chart switches per unit time)
-took minutes for T = 3.  The CPU seconds of the solving thread bound that.  They are the one part of a budget
-whose verdict depends on the machine: a run stopped by them stops at a time that does; ``Budget(seconds=None)``
-bounds steps and bytes only, machine-independent.
+Steps alone do not bound the time: a step's cost differs between solvers (measured in CPU time on one machine at
+n = 4, 5, 7: 9, 10, 37 us for the hinge method, 240, 410, 810 us for the chart method in Sundman's time, 22-39
+times as much; two to four times that in long double), so 1e8 steps are 15 minutes of the one and a day of the
+other.  Chart solves take 1e4-1e5 steps per unit time near either end of the range of ``L`` (n = 7,
+``L = 5.0136``, T = 2.95: 85,895 steps, 1,230 chart switches, 38 s of CPU; n = 5, ``L = 5 - 1e-7``: 24,000
+steps and 300 switches per unit time), so a long one runs for hours within the step budget.  The CPU seconds of
+the solving thread bound that.  They are the one part of a budget whose verdict depends on the machine: a run
+stopped by them stops at a time that does; ``Budget(seconds=None)`` bounds steps and bytes only,
+machine-independent.
 """
 
 from __future__ import annotations
