@@ -230,7 +230,7 @@ def test_an_estimate_stops_at_its_budget_and_says_so():
     h, v = sample_starts(chain, 1, 0.5, np.random.default_rng(3))
     r = lyapunov_exponent(chain, h[0], v[0], 1e6, budget=Budget(steps=300), throw=False)
     assert r.status is SolveStatus.BUDGET_EXCEEDED and r.n_steps == 300
-    assert re.search(r"the budget of 300 steps .* reaching t_final = 1e\+06 would take about", r.message)
+    assert re.search(r"the budget of 300 steps, .* reaching t_final = 1e\+06 would take about", r.message)
     assert "dense=False" not in r.message  # an estimate keeps no dense output: no such hint
     assert 0 < r.times[-1] < 1e6 and np.all(np.isfinite(r.exponents))
     with pytest.raises(LyapunovError, match="the budget of 300 steps"):
