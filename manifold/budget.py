@@ -142,8 +142,8 @@ def spent_message(account: _Account, t: float, t_final: float) -> str:
     need = f"about {account.steps * scale:.3g} steps ({account.cpu_seconds() * scale:.3g} s of CPU here)"
     if account.per_step:
         need += f" and {account.dense_bytes * scale / 2**30:.3g} GiB of dense output ({account.per_step} bytes a step)"
-    dense = (", or save=SaveAt(dense=False) (and no t_eval, whose grid is read from a segment's dense output) to keep "
-             "only the end state") if account.per_step else ""  # a solve that kept no dense output has no use for the hint
+    dense = (", or save=SaveAt(dense=False) to keep no dense output (where a solver reads a t_eval grid from a "
+             "segment's dense output, also no t_eval)") if account.per_step else ""  # a solve that kept no dense output has no use for the hint
     budget = account.budget
     seconds = "" if budget.seconds is None else f" and {budget.seconds:g} s of CPU"
     return (f"the budget of {budget.steps:.3g} steps, {budget.dense_bytes / 2**30:.3g} GiB of dense output{seconds} "

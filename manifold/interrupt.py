@@ -48,6 +48,9 @@ __all__ = ["BUDGET", "CHUNK_SECONDS", "INTERRUPTED", "Listener", "SolveInterrupt
 CHUNK_SECONDS = 0.1
 #: The first chunk's steps, before any is timed.
 FIRST_CHUNK = 64
+#: Steps between two readings of the CPU clock by :func:`propagate_grid`'s step callback (a reading costs about as
+#: much as a short step).
+TIME_CHECK_STEPS = 256
 #: The failure message of an interrupted propagation.
 INTERRUPTED = "interrupted (KeyboardInterrupt)"
 #: The failure message of a propagation stopped by its budget of steps or CPU time (:mod:`manifold.budget`).
@@ -174,10 +177,12 @@ def propagate_grid(ta: Any, grid: NDArray, *, callback: Callable[[Any], bool] | 
     are those of ``propagate_until(grid[-1])``, since heyoka clamps a step only at the grid's end.  It runs as one
     heyoka call, with a step callback that reads the Ctrl-C flag (about 0.1 us a step), not in chunks: a grid
     restarted where a chunk stopped would begin at a float64 time, without the low half of heyoka's double-length
-    time, and the samples would then depend on how the machine's speed sized the chunks.
+    time, and the samples would then depend on how the machine's speed sized the chunks.  With ``max_steps`` (a
+    :mod:`manifold.budget` allowance) it takes at most that many steps, and the callback stops it once the budget's
+    CPU seconds are spent (read every :data:`TIME_CHECK_STEPS` steps).
 
     Returns ``(outcome, steps, stop, states)``: heyoka's outcome and steps, :data:`INTERRUPTED` if Ctrl-C stopped
-    the run, :data:`BUDGET` if ``max_steps`` did, else ``None``, and the states at the grid's times that the run
+    the run, :data:`BUDGET` if ``max_steps`` or the CPU seconds did, else ``None``, and the states at the grid's times that the run
     reached, ``states[j]`` at ``grid[j]`` (``len(states) <= len(grid)``; all of them if it reached the end).
     """
     grid = np.asarray(grid)
@@ -192,9 +197,15 @@ def propagate_grid(ta: Any, grid: NDArray, *, callback: Callable[[Any], bool] | 
     at_start = int(times[0] == ta.time)
     start = np.array(ta.state)
     with interruptible() as pressed:
+        steps_taken, timed_out = 0, False
+
         def stepped(ta: Any) -> bool:
+            nonlocal steps_taken, timed_out
             go_on = callback(ta) if callback is not None else True
-            return bool(go_on) and not pressed()
+            steps_taken += 1
+            if steps_taken % TIME_CHECK_STEPS == 0 and max_steps is not None and out_of_time():
+                timed_out = True
+            return bool(go_on) and not pressed() and not timed_out
 
         outcome, _, _, steps, _, out = ta.propagate_grid(np.concatenate([[ta.time], times[at_start:]]),
                                                          callback=stepped, max_steps=max_steps or 0)
@@ -204,7 +215,7 @@ def propagate_grid(ta: Any, grid: NDArray, *, callback: Callable[[Any], bool] | 
             states = np.concatenate([states, np.array(ta.state)[None, :]])
         if pressed():
             stop: str | None = INTERRUPTED
-        elif max_steps is not None and outcome == hy.taylor_outcome.step_limit:
+        elif timed_out or (max_steps is not None and outcome == hy.taylor_outcome.step_limit):
             stop = BUDGET
         else:
             stop = None
