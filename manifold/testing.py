@@ -35,6 +35,8 @@ from .carried import solve_carried
 from .constrained import ConstrainedGeometry, ConstrainedSystem, solve_constrained
 from .geodesic_solver import solve_chart_exp_ode
 from .metric import InducedMetric
+from .solution import energy_bound
+from .steppers import taylor_relative_tolerance
 from .transport import ParallelTransport
 from .validation import check_real, real_array
 
@@ -167,7 +169,7 @@ def check_geodesic_energy(metric: InducedMetric, p0: ArrayLike, v0: ArrayLike, t
 
 
 def check_constrained(system: ConstrainedSystem, x: ArrayLike, v: ArrayLike, *, t_final: float = 5.0,
-                      step: float = 1e-6, bound: float = 1e-12, rng: np.random.Generator | None = None,
+                      step: float = 1e-6, bound: float | None = 1e-12, rng: np.random.Generator | None = None,
                       **options: Any) -> ConformanceReport:
     """The constrained system's checks at states ``x, v`` (shape ``(m, N)`` each; ``v`` is projected to tangent).
 
@@ -182,13 +184,21 @@ def check_constrained(system: ConstrainedSystem, x: ArrayLike, v: ArrayLike, *, 
     step
         The step of the central differences.
     bound
-        The bound on the energy error and on the change of the transported vectors' Gram matrix.
+        The bound on the energy error and on the change of the transported vectors' Gram matrix; ``None``: each
+        run's own energy bound, :func:`~manifold.solution.energy_bound` of its steps at the solvers' default
+        tolerance (the bound the solvers themselves apply, which grows with the steps a hard system takes).
     rng
         Random tangent vectors to transport (default ``numpy.random.default_rng(0)``).
     **options
         Passed to :func:`~manifold.constrained.solve_constrained` and :func:`~manifold.carried.solve_carried`.
     """
     rng = np.random.default_rng(0) if rng is None else rng
+    if bound is not None:
+        bound = check_real("bound", bound, positive=True)
+
+    def own_bound(n_steps: int) -> float:
+        return energy_bound(n_steps, taylor_relative_tolerance(None, float))
+
     X, V = real_array("x", x), real_array("v", v)
     N = system.ambient_dim
     if X.ndim != 2 or X.shape[1] != N or V.shape != X.shape:
@@ -207,7 +217,8 @@ def check_constrained(system: ConstrainedSystem, x: ArrayLike, v: ArrayLike, *, 
     report.add("metric positive definite (negative part of the smallest eigenvalue)",
                [max(0.0, -float(np.linalg.eigvalsh(K)[0]))], 0.0)
     sol = solve_constrained(system, X[0], V[0], t_final, throw=False, **options)
-    report.add("geodesic: relative energy error", [sol.relative_energy_error if sol.success else np.nan], bound)
+    report.add("geodesic: relative energy error", [sol.relative_energy_error if sol.success else np.nan],
+               own_bound(sol.n_steps) if bound is None else bound)
     vectors = geo.tangent(np.repeat(X[:1], 2, axis=0), rng.standard_normal((2, N)))
     carried = solve_carried(system, X[0], V[0], t_final, [ParallelTransport(vectors)], throw=False, **options)
     if carried.solution.success:
@@ -218,5 +229,6 @@ def check_constrained(system: ConstrainedSystem, x: ArrayLike, v: ArrayLike, *, 
     gram = (frames @ K) @ frames.transpose(0, 2, 1)
     norms = np.sqrt(np.diagonal(gram[0]))
     drift = np.abs(gram - gram[0]) / np.outer(norms, norms)
-    report.add("parallel transport: change of the Gram matrix of (W1, W2, v)", drift, bound)
+    report.add("parallel transport: change of the Gram matrix of (W1, W2, v)", drift,
+               own_bound(carried.solution.n_steps) if bound is None else bound)
     return report

@@ -44,7 +44,11 @@ def test_suspension_and_any_length_atlases_conform(chain):
 @pytest.mark.parametrize("chain", CHAINS, ids=repr)
 def test_chain_constraints_conform(chain):
     points, velocities = _samples(chain, 6, seed=1)
-    check_constrained(ChainSystem(chain), points, velocities).raise_on_failure()
+    # within 1e-3 of the stretched chain the rods carry tensions of order E / (n - L) that act on the state's
+    # rounding, and the hinge method's errors grow with the steps (docs/methods.md): there, the solvers' own bound
+    # for the steps taken (n = 3, L = 3 - 1e-4: the transported Gram matrix moved 1.2e-12 over T = 5)
+    near_top = sum(chain.lengths) - chain.L < 1e-3
+    check_constrained(ChainSystem(chain), points, velocities, bound=None if near_top else 1e-12).raise_on_failure()
 
 
 def test_the_stereographic_sphere_conforms_by_charts_and_by_its_constraint():
