@@ -978,7 +978,7 @@ def solve_constrained(
             # x' = v: without carried terms the positions' polynomials hold the velocities' (half the bytes)
             times = _segment_grid(grid, n_grid, end, sign, fp_type) if grid is not None and sampled else None
             adv = taylor_advance(ta, t, np.concatenate([x, v, carried]), fp_type(end), pars,
-                                 dense or (grid is not None and times is None), fp_type,
+                                 dense or (grid is not None and not sampled), fp_type,
                                  positions=0 if carry else N, grid=times)
             sol.segments.append(Segment(None, t, adv.t, adv.n_steps, adv.dense if dense else None))
             c, _, _, E = geo(adv.step_states[:, :N], adv.step_states[:, N : 2 * N])

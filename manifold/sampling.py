@@ -247,5 +247,5 @@ def sample_velocities(metric: InducedMetric, p: ArrayLike, energy: float, rng: n
         a_dot = np.linalg.solve(R, w[rows][..., None])[..., 0]  # R a' = w: g-orthonormal in the chart
         v[rows] = np.einsum("...rk,...k->...r", J, a_dot)
     # the energy 1/2 v^T K v of J R^-1 w is 1/2 to the rounding of R, which cond C can spoil: scale it exactly
-    v *= np.sqrt(2 * energy / np.einsum("...r,rs,...s->...", v, metric.K, v))[:, None]
+    v *= np.sqrt(energy / metric.ambient_kinetic_energy(v))[:, None]
     return v.reshape(*lead, N)

@@ -265,6 +265,8 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     if n_events:
         ta.reset_cooldowns()
     progress = step_callback()  # None unless asked; it only reads the integrator: results are the same without it
+    if grid is not None and not dense:
+        return _sampled_advance(ta, t, t_final, grid, n_events, progress)
     step_times, tcs, tops = [ta.time], [], []
     # ta.tc is a view of the integrator's coefficient buffer, which heyoka fills in place at every step and never
     # moves (every precision): taken once here, not per step (~0.7 us a step)
@@ -282,8 +284,6 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
         step_times.append(ta.time)
         return progress is None or progress(ta)
 
-    if grid is not None and not dense:
-        return _sampled_advance(ta, t, t_final, grid, n_events, progress)
     # The Taylor coefficients of each step, kept by a step callback: heyoka's c_output gives the same numbers
     # but builds a continuous_output (an LLVM state) on every call, ~2.5 ms per segment.
     callback = (record_positions if positions else record) if dense else progress
