@@ -11,6 +11,7 @@ import os
 import signal
 import threading
 import time
+from collections.abc import Callable
 
 import heyoka as hy
 import numpy as np
@@ -48,18 +49,24 @@ def _press_ctrl_c_once_stepping(timeout: float = 120.0) -> None:
     os.kill(os.getpid(), signal.SIGINT)
 
 
+def _interrupted(run: Callable[[], object]) -> SolveInterrupted:
+    """``run()`` with Ctrl-C pressed once it is stepping: the :class:`SolveInterrupted` it must raise."""
+    threading.Thread(target=_press_ctrl_c_once_stepping, daemon=True).start()
+    with pytest.raises(SolveInterrupted) as info:
+        run()
+    return info.value
+
+
 @pytest.mark.parametrize("name", list(RUNS))
 def test_ctrl_c_stops_a_long_solve_with_its_partial_result(name):
     run = RUNS[name]
     run(1.0)  # compiled before the clock starts
     # Ctrl-C once the solve is stepping: its flag handler in place, then a few chunks of steps (a fixed delay
     # landed before the handler on a loaded machine, while a Lyapunov run of T = 1e7 built its arrays)
-    threading.Thread(target=_press_ctrl_c_once_stepping, daemon=True).start()
-    with pytest.raises(SolveInterrupted) as info:
-        run(1e7)
-    assert isinstance(info.value, KeyboardInterrupt)
-    result = info.value.result
-    assert result.status is SolveStatus.INTERRUPTED and "KeyboardInterrupt" in str(info.value)
+    error = _interrupted(lambda: run(1e7))
+    assert isinstance(error, KeyboardInterrupt)
+    result = error.result
+    assert result.status is SolveStatus.INTERRUPTED and "KeyboardInterrupt" in str(error)
     if name == "lyapunov":
         assert 0 < result.times[-1] < 1e7 and np.all(np.isfinite(result.exponents))
     else:
@@ -153,11 +160,9 @@ ENSEMBLES = {
 def test_ctrl_c_stops_an_ensemble_with_its_partial_results(name):
     run = ENSEMBLES[name]
     run(1.0)  # compiled before the clock starts
-    threading.Thread(target=_press_ctrl_c_once_stepping, daemon=True).start()
-    with pytest.raises(SolveInterrupted) as info:
-        run(1e7)
-    ensemble = info.value.result
-    assert len(ensemble) == len(H4) and "KeyboardInterrupt" in str(info.value)
+    error = _interrupted(lambda: run(1e7))
+    ensemble = error.result
+    assert len(ensemble) == len(H4) and "KeyboardInterrupt" in str(error)
     assert all(s is SolveStatus.INTERRUPTED for s in ensemble.status)
     reached = ensemble.t_reached
     assert np.all((reached >= 0) & (reached < 1e7)) and np.any(reached > 0)
@@ -170,11 +175,9 @@ def test_ctrl_c_stops_an_ensemble_with_its_partial_results(name):
 
 def test_ctrl_c_stops_lyapunov_estimates_on_threads():
     lyapunov_exponents(CHAIN, H4[:2], V4[:2], 1.0, backend="threads", chunk_size=1)  # compiled first
-    threading.Thread(target=_press_ctrl_c_once_stepping, daemon=True).start()
-    with pytest.raises(SolveInterrupted) as info:
-        # 1e9 renormalisations planned: their end times were once one array of 8 GB
-        lyapunov_exponents(CHAIN, H4[:2], V4[:2], 1e7, backend="threads", chunk_size=1, interval=0.01)
-    results = info.value.result
+    # 1e9 renormalisations planned: their end times were once one array of 8 GB
+    results = _interrupted(lambda: lyapunov_exponents(CHAIN, H4[:2], V4[:2], 1e7, backend="threads", chunk_size=1,
+                                                      interval=0.01)).result
     assert len(results) == 2 and all(r.status is SolveStatus.INTERRUPTED for r in results)
     assert sum(r.n_steps for r in results) > 0
     for r in results:  # each estimate as far as it got: its renormalisations, finite
