@@ -24,6 +24,8 @@ from __future__ import annotations
 from typing import Any
 
 import heyoka as hy
+import numpy as np
+from numpy.typing import NDArray
 
 from manifold.backends import Cx, HeyokaOps
 from manifold.family import ChartFamily
@@ -108,6 +110,29 @@ class SuspensionFamily(ChartFamily):
             n = self.n
             hinges = formula.chart_frame_hinges(hinges, hy.par[0], hy.par[n + 3], [hy.par[n + 4 + k] for k in range(n)])
         return formula.parameters(hinges, hy.par[0], HeyokaOps(fp_type), self.rods(fp_type))
+
+    def quality_floors(self, theta: NDArray) -> NDArray:
+        r"""Lower bounds of the qualities over every ``a`` at parameters ``theta``: -1 for each ``cos(phi_m)``, then
+
+        .. math::
+
+            q_A \ge \frac{lo}{lo + l_{max}/4}, \qquad q_B \ge \min\Big(1, \frac{lo}{2 l_{max}}\Big)^{1/4},
+
+        with ``lo`` the whole chain's lower slack (``L - (n - 2)`` for unit rods) and ``l_max`` its longest link
+        (of the sides other than the base).  The circle level's slack is at least ``lo`` (each level adds
+        non-negative terms: :meth:`charts.suspension_formula.Base.inner_lo`), its ``D - l_3 >= lo``, and
+        ``|p_2|^2 >= (D - l_3)^2`` give the first; ``cos^2(alpha/2) = (D + l_3 - R_2)(R_3 + D) / (4 D l_3)
+        >= lo / (2 l_3)`` (``D <= R_3``) and ``q_B^2 >= cos(alpha/2)`` the second
+        (:func:`charts.suspension_formula.fold_qualities`).  Far from the lower end of the range both lie above the
+        default switch threshold 0.25 (``lo > l_max / 12``), so the fold events are not compiled there.
+        """
+        theta = np.asarray(theta, dtype=float)
+        if self.lengths:
+            lo, l_max = theta[self.n + 2], float(np.max(theta[1 : self.n + 1]))
+        else:
+            lo, l_max = theta[0] - (self.n - 2), 1.0
+        fold = [lo / (lo + l_max / 4), min(1.0, lo / (2 * l_max)) ** 0.25]
+        return np.array([-1.0] * (self.dim - 1) + fold)
 
     def quality_expressions(self, a):
         """``cos(phi_m)`` for every latitude (the poles), then the fold terms ``q_A``, ``q_B``

@@ -110,9 +110,10 @@ class CompiledFamily(ArtefactStore):
             return None
         return self._cfunc(("quality", fp_type), fp_type, lambda P: P.quality, "a")
 
-    def events(self) -> list[Event]:
-        """The family's terminal events (:func:`manifold.events.chart_events`), in the canonical numbering."""
-        return self.pieces(float).events()
+    def events(self, switches: Sequence[int] | None = None) -> list[Event]:
+        """The family's terminal events (:func:`manifold.events.chart_events`; the switch events of ``switches``
+        only, if given), in the canonical numbering."""
+        return self.pieces(float).events(switches)
 
     def event_values(self, fp_type: Any = float) -> Any:
         """Compiled ``(a, c) -> (g_1, ..., g_m, dg_1/dt, ..., dg_m/dt)``: the :meth:`events`' values and their rates
@@ -161,48 +162,53 @@ class CompiledFamily(ArtefactStore):
         """Compiled ``a -> z(a)``: the chart map alone (no Jacobian to compute and throw away)."""
         return self._cfunc(("point", fp_type), fp_type, lambda P: list(P.z), "a")
 
-    def composition(self, fp_type: Any, terms: Sequence[Term] | None = None) -> tuple[list[tuple], list[Event]]:
+    def composition(self, fp_type: Any, terms: Sequence[Term] | None = None,
+                    switches: Sequence[int] | None = None) -> tuple[list[tuple], list[Event]]:
         """The equations and terminal events of the composition ``terms`` (:mod:`manifold.terms`), built once.
 
         ``terms``, in order: a :class:`~manifold.terms.StateTerm` first (default: ``ChartGeodesic()``, the state
         ``(a, c)`` in the embedded form), each term's parameters after the previous one's from
         :attr:`~manifold.geodesic_system.Layout.terms_index`, its events after the family's (the atlas loop reads
-        what each event index means here).
+        what each event index means here).  ``switches``: the qualities whose switch events are kept (``None``: all;
+        :meth:`~manifold.family.ChartFamily.quality_floors`).
         """
         terms = _checked_terms(terms)
+        switches = None if switches is None else tuple(switches)
 
         def build() -> tuple[list[tuple], list[Event]]:
             P = self.pieces(fp_type)
             equations: list[tuple] = []
-            events, offset = P.events(), self.layout.terms_index
+            events, offset = P.events(switches), self.layout.terms_index
             for term in terms:
                 equations = term.equations(P, equations, offset)
                 events += term.events(equations, offset)
                 offset += term.n_params
             return equations, events
-        return self._get(("composition", fp_type, tuple(t.key for t in terms)), build)
+        return self._get(("composition", fp_type, tuple(t.key for t in terms), switches), build)
 
     @contextmanager
     def integrator(self, fp_type: Any = float, tol: float | None = None, terms: Sequence[Term] | None = None,
                    backward: bool = False, compact_mode: bool = True,
-                   opt_level: int = DEFAULT_OPT_LEVEL) -> Iterator[Any]:
+                   opt_level: int = DEFAULT_OPT_LEVEL, switches: Sequence[int] | None = None) -> Iterator[Any]:
         """Lend a Taylor integrator of the geodesics with switch events; return it after use.
 
         The caller owns it inside the ``with`` block: set ``state``, ``time``
         and ``pars`` (:attr:`ChartNumerics.pars`, then each term's parameters) before each use.
         ``tol=None`` is :func:`default_tolerance` (1e-14 in float64, the
         machine epsilon of other types).  ``terms`` (:mod:`manifold.terms`) compose the equations
-        (:meth:`composition`).  ``backward=True`` mirrors the event directions for negative times.
+        (:meth:`composition`), with the switch events of ``switches`` only if given.  ``backward=True`` mirrors the
+        event directions for negative times.
         ``compact_mode`` and ``opt_level`` (LLVM's optimisation level, 0..3) are heyoka's compile options; each
         combination is a separate integrator.
         """
         terms = _checked_terms(terms)
         tol = default_tolerance(fp_type) if tol is None else tol
-        key = ("integrator", fp_type, tol, backward, compact_mode, opt_level, tuple(t.key for t in terms))
+        switches = None if switches is None else tuple(switches)
+        key = ("integrator", fp_type, tol, backward, compact_mode, opt_level, tuple(t.key for t in terms), switches)
 
         def build() -> Any:
             kw = {} if tol is None else {"tol": fp_type(tol)}
-            equations, events = self.composition(fp_type, terms)
+            equations, events = self.composition(fp_type, terms, switches)
             return hy.taylor_adaptive(equations, as_fp(np.zeros(len(equations)), fp_type), compact_mode=compact_mode,
                                       opt_level=opt_level, t_events=heyoka_events(events, backward, fp_type), **kw,
                                       **heyoka_fp_kwargs(fp_type))

@@ -5,7 +5,9 @@ direction: the motion stops where ``g`` crosses zero that way.  The chart
 family's events (:func:`chart_events`, numbered in this order everywhere) are
 
 * one switch event per quality expression, ``quality_m(a) - q_out``, falling
-  (the chart's quality sinks to the threshold before its singular set);
+  (the chart's quality sinks to the threshold before its singular set), except for the
+  qualities whose floor lies above ``q_out`` (they can never fire:
+  :meth:`~manifold.family.ChartFamily.quality_floors`);
 * two wrap events per periodic parameter ``a_p``: ``a_p - pi`` rising and
   ``a_p + pi`` falling (the loop wraps ``a_p`` by ``-+ 2 pi`` and stays in the chart);
 
@@ -75,14 +77,17 @@ class Event:
     shift: int = 0
 
 
-def chart_events(pieces: Any) -> list[Event]:
+def chart_events(pieces: Any, switches: Sequence[int] | None = None) -> list[Event]:
     """The chart family's events, in their canonical order: the switch events, then two wraps per periodic parameter.
 
     ``pieces`` is the family's :class:`~manifold.geodesic_system.SymbolicPieces`; ``q_out`` is its runtime parameter
     (:attr:`~manifold.geodesic_system.Layout.q_out_index`), so one compiled system serves every threshold.
+    ``switches``: the indices of the qualities whose switch events are kept (``None``: all; see
+    :meth:`~manifold.family.ChartFamily.quality_floors` for the ones that can never fire).
     """
     q_out = hy.par[pieces.layout.q_out_index]
-    events = [Event(quality - q_out, FALLING, SWITCH) for quality in pieces.quality]
+    kept = range(len(pieces.quality)) if switches is None else switches
+    events = [Event(pieces.quality[m] - q_out, FALLING, SWITCH) for m in kept]
     for p in pieces.family.periodic:
         events += [Event(pieces.a[p] - hy.pi, RISING, WRAP, p, -1), Event(pieces.a[p] + hy.pi, FALLING, WRAP, p, 1)]
     return events

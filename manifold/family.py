@@ -14,14 +14,15 @@ from collections.abc import Hashable, Sequence
 from typing import Any
 
 import heyoka as hy
+from numpy.typing import NDArray
 
 
 class ChartFamily(ABC):
     """A family of chart maps ``z(a; theta)`` as heyoka expressions.
 
     A subclass implements :attr:`key`, :meth:`point_expressions` and
-    :meth:`quality_expressions`, and may implement :meth:`point_jets` and
-    :meth:`inverse_expressions`.
+    :meth:`quality_expressions`, and may implement :meth:`point_jets`,
+    :meth:`inverse_expressions` and :meth:`quality_floors`.
     Equality of families is equality of keys: compiled code is cached per key.
 
     Attributes
@@ -83,6 +84,17 @@ class ChartFamily(ABC):
         (``expression - q_out``, decreasing), so the numpy quality and the
         events come from this one formula.
         """
+
+    def quality_floors(self, theta: NDArray) -> NDArray | None:
+        """Lower bounds of the :meth:`quality_expressions` at parameters ``theta``, over every ``a``; or ``None``
+        (the default: none known).
+
+        A quality whose floor lies above the switch threshold ``q_out`` never falls to it, so its switch event can
+        never fire: the geodesic solver compiles its integrator without that event (each event costs its Taylor
+        coefficients and a root search at every step).  A floor must hold for every real ``a``, not only on the
+        chart's domain, and must not be rounded up.
+        """
+        return None
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, ChartFamily) and other.key == self.key

@@ -12,7 +12,8 @@ polished by Newton steps in the working precision), and
 ``c_j = g_j^{-1} J_j^T K v`` (exact for the tangent ``v``, so energy is
 unchanged).  The best chart has quality far above ``q_out`` (hysteresis), so
 switches cannot chatter.  The loop is written once; steppers differ only in
-how they advance inside a chart.
+how they advance inside a chart.  A quality that the family bounds above
+``q_out`` everywhere gets no switch event (:func:`needed_switches`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .atlas import Atlas
 from .budget import DEFAULT_BUDGET, Budget, spending, spent_message
 from .compiled import compiled
 from .events import STOP, WRAP
@@ -42,6 +44,8 @@ from .validation import check_bool, check_index, check_real, check_time_grid, re
 #: A start point whose chart parameters give back a point farther than this (times ``max(1, |p0|)``) is refused:
 #: the start is never silently moved.
 START_POINT_TOLERANCE = 1e-9
+#: A quality whose floor lies within this of ``q_out`` keeps its switch event (:func:`needed_switches`).
+FLOOR_MARGIN = 1e-9
 
 
 class _NoGoodChart(Exception):
@@ -165,14 +169,15 @@ def solve_chart_exp_ode(
     atlas, num, k = metric.atlas, sol.chart_numerics, metric.atlas.dim
     energy_tol = stepper.relative_tolerance(fp_type)
     family = compiled(atlas.charts[0].family)
-    events = stepper.events(family, fp_type, form)  # what each event index means: switch, wrap, stop (manifold.events)
+    switches = needed_switches(atlas, q_event)
+    events = stepper.events(family, fp_type, form, switches)  # what each index means: switch, wrap, stop
     two_pi = 8 * np.arctan(as_fp(1.0, fp_type))  # 2 pi exact to fp_type
     backward = t_end < 0
     sign = -1.0 if backward else 1.0
     n_wraps, n_grid, status, message = 0, 0, SolveStatus.SUCCESS, ""
     t0 = time.perf_counter()
     with solve_progress(report, sol) as reports, stepper.session(family, fp_type, form=form, backward=backward,
-                                                                   switching=switching) as advance, \
+                                                                   switches=switches) as advance, \
             interruptible() as pressed, spending(budget) as account:
         compile_seconds = time.perf_counter() - t0
         t = fp_type(0.0)
@@ -247,6 +252,21 @@ def solve_chart_exp_ode(
     if status is not SolveStatus.SUCCESS and throw:
         raise GeodesicIntegrationError(message, sol)
     return sol
+
+
+def needed_switches(atlas: Atlas, q_out: float) -> tuple[int, ...] | None:
+    """The qualities whose switch events can fire at the threshold ``q_out``: those whose floor over every chart of
+    ``atlas`` (:meth:`~manifold.family.ChartFamily.quality_floors`) does not lie above it; ``None`` (all) where the
+    family knows no floors.  With switching off (``q_out = -2``, below every quality) none.
+    """
+    floors = [chart.family.quality_floors(chart.family_parameters) if isinstance(chart, SymbolicChart) else None
+              for chart in atlas.charts]
+    known = [f for f in floors if f is not None]
+    if len(known) < len(floors):
+        return None
+    floor = np.min(known, axis=0)
+    # an absolute margin: a quality evaluated in floating point may dip below its exact value by rounding
+    return tuple(int(m) for m in np.flatnonzero(floor <= q_out + FLOOR_MARGIN))
 
 
 def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, start, t_eval, chart):

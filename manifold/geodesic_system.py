@@ -20,6 +20,7 @@ chart's singular set (:mod:`manifold.events` declares them).  Compiling and cach
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -308,7 +309,7 @@ class SymbolicPieces:
         u = hy.expression(SUNDMAN_TIME)
         return [(lhs, s * rhs) for lhs, rhs in equations] + [(u, s * hy.par[offset])]
 
-    def events(self) -> list[Event]:
-        """The family's terminal events, declared once (:func:`manifold.events.chart_events`): switch events
-        ``quality_m(a) - q_out``, then two wraps per periodic parameter."""
-        return chart_events(self)
+    def events(self, switches: Sequence[int] | None = None) -> list[Event]:
+        """The family's terminal events (:func:`manifold.events.chart_events`): switch events
+        ``quality_m(a) - q_out`` (those of ``switches`` only, if given), then two wraps per periodic parameter."""
+        return chart_events(self, switches)

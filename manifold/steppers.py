@@ -99,12 +99,18 @@ class Stepper(ABC):
 
     @abstractmethod
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
-                switching: bool) -> Any:
-        """Context manager yielding an :data:`AdvanceFunction` private to one solve."""
+                switches: tuple[int, ...] | None) -> Any:
+        """Context manager yielding an :data:`AdvanceFunction` private to one solve, whose events are
+        :meth:`events` ``(family, fp_type, form, switches)``."""
 
-    def events(self, family: CompiledFamily, fp_type: Any, form: str) -> list[Event]:
-        """The terminal events that its :attr:`Advance.event` indexes (default: the family's,
-        :func:`~manifold.events.chart_events`); the atlas loop acts on each by its kind."""
+    def events(self, family: CompiledFamily, fp_type: Any, form: str,
+               switches: tuple[int, ...] | None = None) -> list[Event]:
+        """The terminal events that its :attr:`Advance.event` indexes (default: all of the family's,
+        :func:`~manifold.events.chart_events`); the atlas loop acts on each by its kind.
+
+        ``switches`` names the qualities whose switch events the solve needs (``None``: all); the others can never
+        fire (:meth:`~manifold.family.ChartFamily.quality_floors`), and a stepper may leave them out.
+        """
         return family.events()
 
     def moves_at_rest(self, form: str) -> bool:
@@ -196,19 +202,23 @@ class TaylorStepper(Stepper):
             term.requires(state)
         return (state, *self.terms)
 
-    def events(self, family: CompiledFamily, fp_type: Any, form: str) -> list[Event]:
-        return family.composition(fp_type, self.composition(family, form))[1]
+    def events(self, family: CompiledFamily, fp_type: Any, form: str,
+               switches: tuple[int, ...] | None = None) -> list[Event]:
+        """The composition's events, with the switch events of ``switches`` only: one that cannot fire would still
+        cost its Taylor coefficients and a root search at every step."""
+        return family.composition(fp_type, self.composition(family, form), switches)[1]
 
     def moves_at_rest(self, form: str) -> bool:
         return any(term.moves_at_rest for term in (self._state(form), *self.terms))
 
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
-                switching: bool) -> Iterator[AdvanceFunction]:
+                switches: tuple[int, ...] | None) -> Iterator[AdvanceFunction]:
         terms = self.composition(family, form)
         state, clock = self.state(family, form), self.clock
         offsets = np.cumsum([family.layout.terms_index] + [term.n_params for term in terms])
-        with family.integrator(fp_type, self.tol, terms, backward, self.compact_mode, self.opt_level) as ta:
+        with family.integrator(fp_type, self.tol, terms, backward, self.compact_mode, self.opt_level,
+                               switches) as ta:
             def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
                 segment = SegmentStart(family, fp_type, t, y, t_final, pars)
                 carried = segment.carried if segment.carried.size else np.concatenate(
@@ -385,7 +395,9 @@ class DenseStepper(Stepper):
 
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,
-                switching: bool) -> Iterator[AdvanceFunction]:
+                switches: tuple[int, ...] | None) -> Iterator[AdvanceFunction]:
+        """Steps with all of the family's events (:meth:`Stepper.events`: ``switches`` is not used; the locator
+        evaluates every event in one compiled call per step)."""
         if not is_double(fp_type):
             raise ValueError(f"the {self.name} stepper runs in float64 only, got fp_type = {fp_type!r}")
         values = family.event_values(float)

@@ -132,7 +132,7 @@ class WeightedVelocity(StateTerm):
     def factors(self, segment: SegmentStart) -> tuple[NDArray, NDArray]:
         """``R`` (upper triangular, ``R^T R = B``) and ``R^{-1}`` of the segment's chart, in its working precision
         (``B`` read from the chart's parameters; computed once per chart and type)."""
-        lay, n = segment.family.layout, self.size
+        lay = segment.family.layout
         packed = segment.pars[lay.n_theta : lay.n_theta + lay.n_metric]
         key = (segment.fp_type, tuple(float(x) for x in packed))  # B is packed through float64: exact
         if key not in self._factors:
