@@ -182,9 +182,30 @@ class Base:
         Written as ``2 atan2(sqrt(hi (R_{m-1} + D - l_m)), sqrt((D + l_m - R_{m-1}) (R_m + D)))``
         (``tan^2(alpha/2)`` factored into slacks): ``acos`` near ``+-1`` would lose half the digits.
         """
+        y2, x2 = self._tan_half_alpha_squares()
+        return 2 * ops.atan2(ops.sqrt(y2), ops.sqrt(x2))
+
+    def alpha_rate(self, ops: Any) -> Any:
+        """``d alpha / dD``, the base's slacks moving with it (``d hi = -dD``, ``d lo = dD``).
+
+        With ``y^2 = hi A`` and ``x^2 = B C`` of :meth:`alpha` (``A = R_{m-1} + D - l_m``, ``B = D + l_m - R_{m-1}``,
+        ``C = R_m + D``, each moving like ``D``) and ``hi - A = -2 (D - l_m)``:
+
+            d alpha / dD = (x^2 (hi - A) - y^2 (B + C)) / (x y (x^2 + y^2))
+                         = -(2 x^2 (D - l_m) + y^2 (B + C)) / (x y (x^2 + y^2)),
+
+        a quotient of sums of non-negatives: no cancellation.  It grows like ``1 / sqrt(hi)`` where the base
+        nears ``R_m`` (an outer pole) and like ``1 / sqrt(B)`` where the last link can fold back.
+        """
+        y2, x2 = self._tan_half_alpha_squares()
         r, m = self.rods, self.m
-        return 2 * ops.atan2(ops.sqrt(self.hi * (r.R[m - 1] + self.d_minus_l())),
-                             ops.sqrt(self.last_slack() * (r.R[m] + self.D)))
+        num = 2 * x2 * self.d_minus_l() + y2 * (self.last_slack() + (r.R[m] + self.D))
+        return -num / (ops.sqrt(x2) * ops.sqrt(y2) * (x2 + y2))
+
+    def _tan_half_alpha_squares(self) -> tuple[Any, Any]:
+        """``(hi (R_{m-1} + D - l_m), (D + l_m - R_{m-1}) (R_m + D))``, whose quotient is ``tan^2(alpha / 2)``."""
+        r, m = self.rods, self.m
+        return self.hi * (r.R[m - 1] + self.d_minus_l()), self.last_slack() * (r.R[m] + self.D)
 
     def inner_lo(self, h: Any, d: Any, ops: Any) -> Any:
         """``lo`` of the inner chain at inner base ``d`` and ``h = sin(theta/2)``:
@@ -218,7 +239,7 @@ def top_base(n: int, L: Any, rods: Rods | None = None) -> Base:
     return (Rods.unit(n) if rods is None else rods).top_base(L)
 
 
-def _last_hinge(base: Base, theta: Any, ops: Any) -> Cx:
+def last_hinge(base: Base, theta: Any, ops: Any) -> Cx:
     """``D - l_m e^{i theta}``: the base minus the last link.
 
     Its real part is ``(D - l_m) + 2 l_m sin^2(theta/2)``, a sum of non-negatives with the carried
@@ -342,26 +363,31 @@ def chain_vectors(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1,
 
     for phi in a[:-1]:
         theta, inner = base.peel(phi, ops)
-        p = _last_hinge(base, theta, ops)
+        p = last_hinge(base, theta, ops)
         outer.append(place(p))
         links.append(place(Cx(_times(base.last, ops.cos(theta)), _times(base.last, ops.sin(theta)))))
         base = inner
         frame = place(p.scale(1 / base.D))
-    D = base.D
     if n == 2:
         x, y = _two_link_elbow(base, sheet, ops)
-        return [Cx(x, sheet * y)], [Cx(x, sheet * y), Cx(D - x, -sheet * y)]
-    t = a[-1]
+        return [Cx(x, sheet * y)], [Cx(x, sheet * y), Cx(base.D - x, -sheet * y)]
+    p1, p2, e2, e3 = circle_level(base, a[-1], ops)
+    return [place(p1), place(p2)] + outer[::-1], [place(p1), place(e2), place(e3)] + links[::-1]
+
+
+def circle_level(base: Base, t: Any, ops: Any) -> tuple[Cx, Cx, Cx, Cx]:
+    """The circle level's hinges ``p_1``, ``p_2`` and link vectors ``e_2 = p_2 - p_1``, ``e_3``, in its own frame:
+    three links on the base ``D`` at the coordinate ``t`` (see the module docstring)."""
     alpha = base.alpha(ops)
     theta = alpha * ops.sin(t)
-    p2 = _last_hinge(base, theta, ops)
-    nu = ops.cos(t) * _circle_scale(D, base.last, alpha, ops.one_plus_sin(t), ops.one_minus_sin(t), ops)
+    p2 = last_hinge(base, theta, ops)
+    nu = ops.cos(t) * _circle_scale(base.D, base.last, alpha, ops.one_plus_sin(t), ops.one_minus_sin(t), ops)
     c, cbar, r = _elbow(base, theta, p2.abs2(), ops)
     k = nu * r / 2
     p1 = Cx(c * p2.re - k * p2.im, c * p2.im + k * p2.re)
     e2 = Cx(cbar * p2.re + k * p2.im, cbar * p2.im - k * p2.re)
     e3 = Cx(_times(base.last, ops.cos(theta)), _times(base.last, ops.sin(theta)))
-    return [place(p1), place(p2)] + outer[::-1], [place(p1), place(e2), place(e3)] + links[::-1]
+    return p1, p2, e2, e3
 
 
 def fold_qualities(a: Sequence[Any], L: Any, ops: Any, rods: Rods | None = None) -> list[Any]:
@@ -455,7 +481,7 @@ def rod_angles(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1, rods: Rods | 
     base, R, tail = top_base(n, L, rods), 0.0, []
     for phi in a:
         theta, inner = base.peel(phi, ops)
-        p = _last_hinge(base, theta, ops)
+        p = last_hinge(base, theta, ops)
         tail.append(R + theta)
         R = R + ops.atan2(p.im, p.re)
         base = inner

@@ -33,6 +33,7 @@ from manifold.jets import Jet, JetOps
 from manifold.precision import is_double
 
 from . import suspension_formula as formula
+from .suspension_velocity import chart_velocity
 
 
 class SuspensionFamily(ChartFamily):
@@ -101,6 +102,16 @@ class SuspensionFamily(ChartFamily):
         jets = [Jet.variable(ai, ci, i, k) for i, (ai, ci) in enumerate(zip(a, c))]
         z = self._hinges(jets, JetOps(HeyokaOps(fp_type)), fp_type)
         return [part for h in z for part in (h.re, h.im)]
+
+    def velocity_solve(self, a, V, fp_type):
+        """``(a', J a')`` by the suspension's level recursion (:func:`charts.suspension_velocity.chart_velocity`);
+        ``None`` with a dominant link as the base (its pinned map turns every hinge with every level: no block
+        triangle)."""
+        if self.link_base:
+            return None
+        hinges = [Cx(V[2 * k], V[2 * k + 1]) for k in range(self.n - 1)]
+        a_dot, W = chart_velocity(list(a), hinges, hy.par[0], HeyokaOps(fp_type), self.rods(fp_type))
+        return a_dot, [x for w in W for x in (w.re, w.im)]
 
     def inverse_expressions(self, z, fp_type):
         """The closed-form inverse (:func:`charts.suspension_formula.parameters`) of hinges ``z`` in chart rod order."""

@@ -22,7 +22,7 @@ class ChartFamily(ABC):
 
     A subclass implements :attr:`key`, :meth:`point_expressions` and
     :meth:`quality_expressions`, and may implement :meth:`point_jets`,
-    :meth:`inverse_expressions` and :meth:`quality_floors`.
+    :meth:`inverse_expressions`, :meth:`velocity_solve` and :meth:`quality_floors`.
     Equality of families is equality of keys: compiled code is cached per key.
 
     Attributes
@@ -84,6 +84,17 @@ class ChartFamily(ABC):
         (``expression - q_out``, decreasing), so the numpy quality and the
         events come from this one formula.
         """
+
+    def velocity_solve(self, a: Sequence[hy.expression], V: Sequence[hy.expression],
+                       fp_type: Any) -> tuple[list, list] | None:
+        """``(a', J a')`` for an ambient velocity ``V`` (expressions) by the family's own recursion, or ``None``
+        (the default: :meth:`~manifold.geodesic_system.SymbolicPieces.velocity_coefficients` and the jets).
+
+        It must be the same arithmetic as the generic forward substitution (the same least-squares fit per
+        block of the Jacobian, so the same oblique projection off the tangent space), only cheaper, with the
+        chart's values built as :meth:`point_jets` builds them so that the two share them.
+        """
+        return None
 
     def quality_floors(self, theta: NDArray) -> NDArray | None:
         """Lower bounds of the :meth:`quality_expressions` at parameters ``theta``, over every ``a``; or ``None``

@@ -205,6 +205,16 @@ class SymbolicPieces:
                                       / hy.sum([w * w for w in weights]))
         return [solved[ci] for ci in self.c]
 
+    def tangent_velocity(self, u: list) -> tuple[list, list]:
+        """``(c, J c)`` for an ambient velocity ``u``: the family's own recursion
+        (:meth:`~manifold.family.ChartFamily.velocity_solve`) where it has one, else :meth:`velocity_coefficients`
+        and :meth:`along` (the same numbers)."""
+        solved = self.family.velocity_solve(self.a, u, self.fp_type)
+        if solved is not None:
+            return solved
+        c = self.velocity_coefficients(u)
+        return c, self.along(c)
+
     def along(self, c: list) -> list:
         """``J c`` for coefficients ``c`` (expressions): the jets' derivative :attr:`Jc` with ``c`` substituted."""
         return hy.subs(self.Jc, dict(zip(self.c, c)))
@@ -269,8 +279,7 @@ class SymbolicPieces:
         lay, N = self.layout, self.N
         V = self.ambient_velocity()
         M_inv = self._par_matrix(lay.inverse_map_index)
-        c = self.velocity_coefficients(V)
-        JC = self.along(c)
+        c, JC = self.tangent_velocity(V)
         moves = self.ambient_frame(constrained, n_constraint_pars, offset)
         f = hy.subs([rhs for _, rhs in constrained.equations(False)[N:]], moves)
         gamma = hy.par[offset + n_constraint_pars]
@@ -288,7 +297,7 @@ class SymbolicPieces:
         """
         lay, N = self.layout, self.N
         M = self._par_matrix(lay.map_index)
-        JC = self.along(self.velocity_coefficients(self.ambient_velocity()))
+        JC = self.tangent_velocity(self.ambient_velocity())[1]
         v = [hy.sum([M[r][s] * JC[s] for s in range(N)]) for r in range(N)]
         moves = {hy.par[j]: hy.par[offset + j] for j in range(n_constraint_pars)}
         moves.update({xi: pi for xi, pi in zip(constrained.x, self.ambient_point())})
