@@ -3,9 +3,11 @@
 Run ``python -m benchmarks.chart_scaling [--n 4 6 8 10 12] [--rounds 5]`` (unit rods, ``L = n - 1``).  For
 each ``n`` it prints:
 
-* the nodes of the velocity solve ``a'(a, V)`` alone (compact ``cfunc``), by forward substitution along the
-  suspension's block-triangular Jacobian (:meth:`~manifold.geodesic_system.SymbolicPieces.velocity_coefficients`,
-  the default) and by the normal equations ``g^-1 J^T W V`` (:meth:`~...tangent_coefficients`, the fallback);
+* the nodes of the velocity solve ``a'(a, V)`` alone (compact ``cfunc``): by the suspension's level recursion
+  (:func:`charts.suspension_velocity.chart_velocity`, the default), by the generic forward substitution on the
+  jets along the block-triangular Jacobian (:meth:`~manifold.geodesic_system.SymbolicPieces.velocity_coefficients`)
+  and by the normal equations ``g^-1 J^T W V`` (:meth:`~...tangent_coefficients`, the fallback of a family without
+  a triangular Jacobian);
 * the nodes of the default chart integrator (Sundman's time off, the state ``(a, V)``, switch events) in
   heyoka's Taylor decomposition, which a step's cost is proportional to;
 * CPU time per Taylor step of ``free_motion`` over T = 20 from one start, charts (the default stepper) and
@@ -32,12 +34,12 @@ from manifold.compiled import compiled
 from .starts import chart_start
 
 
-def solve_nodes(chain: Chain) -> tuple[int, int]:
-    """Nodes of ``a'(a, V)``: forward substitution, normal equations."""
+def solve_nodes(chain: Chain) -> tuple[int, int, int]:
+    """Nodes of ``a'(a, V)``: the level recursion, the forward substitution on the jets, the normal equations."""
     P = compiled(chain.atlas().charts[0].family).pieces(float)
     V = [hy.expression(f"V{r}") for r in range(P.N)]
     return tuple(len(hy.cfunc(e, P.a + V, compact_mode=True).dc)  # type: ignore[return-value]
-                 for e in (P.velocity_coefficients(V), P.tangent_coefficients(V)))
+                 for e in (P.tangent_velocity(V)[0], P.velocity_coefficients(V), P.tangent_coefficients(V)))
 
 
 def integrator_nodes(chain: Chain) -> int:
@@ -54,10 +56,10 @@ def main() -> None:
     args = ap.parse_args()
     chains = {n: Chain(n, n - 1.0) for n in args.n}
     starts = {n: chart_start(chain, np.random.default_rng(1)) for n, chain in chains.items()}
-    print("n   a'(a,V) nodes: forward / normal   integrator nodes")
+    print("n   a'(a,V) nodes: recursion / forward / normal   integrator nodes")
     for n, chain in chains.items():
-        forward, normal = solve_nodes(chain)
-        print(f"{n:<3d} {forward:>14,d} / {normal:<8,d} {integrator_nodes(chain):>16,d}")
+        recursion, forward, normal = solve_nodes(chain)
+        print(f"{n:<3d} {recursion:>16,d} / {forward:>7,d} / {normal:<8,d} {integrator_nodes(chain):>14,d}")
     best: dict = {}
     for n, chain in chains.items():  # compile outside the timing
         for method in ("charts", "hinges"):
