@@ -44,22 +44,24 @@ from typing import Any
 from manifold.backends import Cx
 
 
-def _is_zero(x: Any) -> bool:
+def is_zero(x: Any) -> bool:
+    """Whether ``x`` is a Python number equal to 0 (a length sum that folds away for unit rods)."""
     return isinstance(x, (int, float)) and x == 0
 
 
-def _is_one(x: Any) -> bool:
+def is_one(x: Any) -> bool:
+    """Whether ``x`` is a Python number equal to 1 (a unit rod)."""
     return isinstance(x, (int, float)) and x == 1
 
 
-def _plus(x: Any, y: Any) -> Any:
+def plus(x: Any, y: Any) -> Any:
     """``x + y``, dropping a Python zero (unit rods: no ``+ 0`` in the expressions)."""
-    return x if _is_zero(y) else y if _is_zero(x) else x + y
+    return x if is_zero(y) else y if is_zero(x) else x + y
 
 
-def _times(x: Any, y: Any) -> Any:
+def times(x: Any, y: Any) -> Any:
     """``x y``, dropping a Python one."""
-    return x if _is_one(y) else y if _is_one(x) else x * y
+    return x if is_one(y) else y if is_one(x) else x * y
 
 
 def _minimum(x: Any, y: Any, ops: Any) -> Any:
@@ -96,7 +98,7 @@ class Rods:
         self.R: list[Any] = [0]
         self.mu: list[Any] = [None]
         for k, lk in enumerate(self.l):
-            self.R.append(_plus(self.R[-1], lk))
+            self.R.append(plus(self.R[-1], lk))
             self.mu.append(lk if k == 0 else _minimum(self.mu[-1], lk, ops))
 
     @classmethod
@@ -112,20 +114,20 @@ class Rods:
         """``R_{m-1} - 2 mu_m = sum_{j<m} (l_j - mu_m) + (m-3) mu_m``: a sum of non-negatives for ``m >= 3``
         (the plain difference cancels where two links are nearly equal and the shortest); ``m - 3`` for unit rods."""
         mu = self.mu[m]
-        out = (m - 3) * mu if isinstance(mu, (int, float)) else _times(mu, m - 3) if m > 3 else 0
+        out = (m - 3) * mu if isinstance(mu, (int, float)) else times(mu, m - 3) if m > 3 else 0
         for lj in self.l[: m - 1]:
-            out = _plus(out, 0 if isinstance(lj, (int, float)) and lj == mu else lj - mu)
+            out = plus(out, 0 if isinstance(lj, (int, float)) and lj == mu else lj - mu)
         return out
 
     def last_excess(self, m: int) -> Any:
         """``2 (l_m - mu_m) >= 0``: a Python 0 for unit rods."""
         d = self.l[m - 1] - self.mu[m]
-        return 0 if _is_zero(d) else 2 * d
+        return 0 if is_zero(d) else 2 * d
 
     def min_step(self, m: int) -> Any:
         """``2 (mu_{m-1} - mu_m) >= 0``: a Python 0 for unit rods."""
         d = self.mu[m - 1] - self.mu[m]
-        return 0 if _is_zero(d) else 2 * d
+        return 0 if is_zero(d) else 2 * d
 
     def top_base(self, L: Any) -> "Base":
         """The whole chain's base: ``L`` with slacks ``hi = R_n - L`` and ``lo = L - (R_n - 2 mu_n)``."""
@@ -170,11 +172,11 @@ class Base:
 
     def d_minus_l(self) -> Any:
         """``D - l_m = lo + (R_{m-1} - 2 mu_m)``: both terms ``>= 0`` for ``m >= 3`` (no cancellation)."""
-        return _plus(self.lo, self.rods.fold_gap(self.m))
+        return plus(self.lo, self.rods.fold_gap(self.m))
 
     def last_slack(self) -> Any:
         """``D + l_m - R_{m-1} = lo + 2 (l_m - mu_m)``, both terms ``>= 0``: 0 where the last link can fold back."""
-        return _plus(self.lo, self.rods.last_excess(self.m))
+        return plus(self.lo, self.rods.last_excess(self.m))
 
     def alpha(self, ops: Any) -> Any:
         """Half-width of the last link's arc: ``acos((D^2 + l_m^2 - R_{m-1}^2) / (2 D l_m))``.
@@ -210,8 +212,8 @@ class Base:
     def inner_lo(self, h: Any, d: Any, ops: Any) -> Any:
         """``lo`` of the inner chain at inner base ``d`` and ``h = sin(theta/2)``:
         ``lo' = lo + (d - (D - l_m)) + 2 (mu_{m-1} - mu_m)``, ``d - (D - l_m) = 4 D l_m h^2 / (d + D - l_m)``."""
-        step = _times(4 * self.D, self.last) * h * h / (d + self.d_minus_l())
-        return _plus(self.lo + step, self.rods.min_step(self.m))
+        step = times(4 * self.D, self.last) * h * h / (d + self.d_minus_l())
+        return plus(self.lo + step, self.rods.min_step(self.m))
 
     def inner(self, alpha: Any, theta: Any, up: Any, dn: Any, ops: Any) -> "Base":
         """Base of the inner chain (``m-1`` links) after the last link at angle ``theta``.
@@ -223,8 +225,8 @@ class Base:
         r, m = self.rods, self.m
         h = ops.sin(theta / 2)
         DmL = self.d_minus_l()
-        d = ops.sqrt(DmL * DmL + _times(4 * self.D, self.last) * h * h)
-        X = _times(4 * self.D, self.last) * ops.sin(alpha * up / 2) * ops.sin(alpha * dn / 2)
+        d = ops.sqrt(DmL * DmL + times(4 * self.D, self.last) * h * h)
+        X = times(4 * self.D, self.last) * ops.sin(alpha * up / 2) * ops.sin(alpha * dn / 2)
         return Base(d, self.inner_lo(h, d, ops), X / (r.R[m - 1] + d), m - 1, r)
 
     def peel(self, phi: Any, ops: Any) -> tuple[Any, "Base"]:
@@ -247,12 +249,12 @@ def last_hinge(base: Base, theta: Any, ops: Any) -> Cx:
     near 0 (a fold), where the elbow ``p_2 / |p_2|`` amplifies it by ``l / |p_2|``.
     """
     l, h = base.last, ops.sin(theta / 2)
-    return Cx(_plus(base.d_minus_l(), _times(2 * l, h * h)), -_times(l, ops.sin(theta)))
+    return Cx(plus(base.d_minus_l(), times(2 * l, h * h)), -times(l, ops.sin(theta)))
 
 
 def _circle_scale(D: Any, l: Any, alpha: Any, up: Any, dn: Any, ops: Any) -> Any:
     """``alpha sqrt(D l sinc(alpha up/2) sinc(alpha dn/2))``, so that ``nu = cos(t) *`` this."""
-    return alpha * ops.sqrt(_times(D, l) * ops.sinc(alpha * up / 2) * ops.sinc(alpha * dn / 2))
+    return alpha * ops.sqrt(times(D, l) * ops.sinc(alpha * up / 2) * ops.sinc(alpha * dn / 2))
 
 
 def _elbow(base: Base, theta: Any, P2: Any, ops: Any) -> tuple[Any, Any, Any]:
@@ -274,7 +276,7 @@ def _elbow(base: Base, theta: Any, P2: Any, ops: Any) -> tuple[Any, Any, Any]:
     l1, l2 = base.rods.l[0], base.rods.l[1]
     diff = l1 - l2
     d = ops.sqrt(P2)
-    if _is_zero(diff):
+    if is_zero(diff):
         return 0.5, 0.5, 1 / d
     lo2 = base.inner_lo(ops.sin(theta / 2), d, ops)
     s = ops.abs(diff)
@@ -310,7 +312,7 @@ def _up_dn(base: Base, alpha: Any, theta: Any, inner_slack: Any, d: Any, ops: An
     large = 1 + ratio
     X = inner_slack * (base.rods.R[base.m - 1] + d)
     polar = 2 * ops.ratio_or_zero(
-        ops.asin_clipped(X / (_times(4 * base.D, base.last) * ops.sin(alpha * large / 2))), alpha)
+        ops.asin_clipped(X / (times(4 * base.D, base.last) * ops.sin(alpha * large / 2))), alpha)
     small = ops.where(ops.gt(ratio, 0.5), polar, 1 - ratio)
     north = ops.ge(theta, 0)
     return ops.where(north, large, small), ops.where(north, small, large)
@@ -322,7 +324,7 @@ def _two_link_elbow(base: Base, sheet: int, ops: Any) -> tuple[Any, Any]:
     D, hi, lo = base.D, base.hi, base.lo
     l1, l2 = base.rods.l[0], base.rods.l[1]
     diff = l1 - l2
-    if _is_zero(diff):
+    if is_zero(diff):
         return D / 2, ops.sqrt(hi * (2 + D)) / 2
     return (D / 2 + diff * (l1 + l2) / (2 * D),
             ops.sqrt(hi * (base.rods.R[2] + D) * lo * (lo + 2 * ops.abs(diff))) / (2 * D))
@@ -365,7 +367,7 @@ def chain_vectors(a: Sequence[Any], L: Any, ops: Any, sheet: int = 1,
         theta, inner = base.peel(phi, ops)
         p = last_hinge(base, theta, ops)
         outer.append(place(p))
-        links.append(place(Cx(_times(base.last, ops.cos(theta)), _times(base.last, ops.sin(theta)))))
+        links.append(place(Cx(times(base.last, ops.cos(theta)), times(base.last, ops.sin(theta)))))
         base = inner
         frame = place(p.scale(1 / base.D))
     if n == 2:
@@ -386,7 +388,7 @@ def circle_level(base: Base, t: Any, ops: Any) -> tuple[Cx, Cx, Cx, Cx]:
     k = nu * r / 2
     p1 = Cx(c * p2.re - k * p2.im, c * p2.im + k * p2.re)
     e2 = Cx(cbar * p2.re + k * p2.im, cbar * p2.im - k * p2.re)
-    e3 = Cx(_times(base.last, ops.cos(theta)), _times(base.last, ops.sin(theta)))
+    e3 = Cx(times(base.last, ops.cos(theta)), times(base.last, ops.sin(theta)))
     return p1, p2, e2, e3
 
 
@@ -414,10 +416,10 @@ def fold_qualities(a: Sequence[Any], L: Any, ops: Any, rods: Rods | None = None)
     t, D, l3 = a[-1], base.D, base.last
     h = ops.sin(base.alpha(ops) * ops.sin(t) / 2)
     DmL = base.d_minus_l()
-    P2 = DmL * DmL + _times(4 * D, l3) * h * h
-    cos_half_alpha = ops.sqrt(base.last_slack() * (base.rods.R[3] + D) / _times(4 * D, l3))
+    P2 = DmL * DmL + times(4 * D, l3) * h * h
+    cos_half_alpha = ops.sqrt(base.last_slack() * (base.rods.R[3] + D) / times(4 * D, l3))
     s, c = ops.sin(t), ops.cos(t)
-    return [P2 / (P2 + _times(DmL, l3) / 4), ops.sqrt(c * c + s * s * cos_half_alpha)]
+    return [P2 / (P2 + times(DmL, l3) / 4), ops.sqrt(c * c + s * s * cos_half_alpha)]
 
 
 def parameters(z: Sequence[Cx], L: Any, ops: Any, rods: Rods | None = None) -> list[Any]:
@@ -529,7 +531,7 @@ def pinned_hinges(q: Sequence[Cx], D: Any, L: Any, w: Sequence[Any], links: Sequ
     turn = Cx(-F.re / L, F.im / L)
     out, W = [], 0
     for qk, wk in zip(q, w):
-        W = _plus(W, wk)
+        W = plus(W, wk)
         out.append(turn * (qk - Cx(D + F.re, F.im).scale(W)))
     return out
 
@@ -541,6 +543,6 @@ def chart_frame_hinges(z: Sequence[Cx], D: Any, L: Any, w: Sequence[Any]) -> lis
     turn = Cx(-e.re / D, e.im / D)
     out, W = [], 0
     for zk, wk in zip(z, w):
-        W = _plus(W, wk)
+        W = plus(W, wk)
         out.append(turn * (zk - Cx(e.re + L, e.im).scale(W)))
     return out

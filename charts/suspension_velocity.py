@@ -41,7 +41,7 @@ from typing import Any
 from manifold.backends import Cx
 from manifold.jets import Jet, JetOps
 
-from .suspension_formula import Base, Rods, circle_level, last_hinge, top_base
+from .suspension_formula import Base, Rods, circle_level, is_one, is_zero, last_hinge, plus, times, top_base
 
 
 def _value(x: Any) -> Any:
@@ -53,26 +53,14 @@ def _values(z: Cx) -> Cx:
     return Cx(_value(z.re), _value(z.im))
 
 
-def _is_zero(x: Any) -> bool:
-    return isinstance(x, (int, float)) and x == 0
-
-
-def _is_one(x: Any) -> bool:
-    return isinstance(x, (int, float)) and x == 1
-
-
-def _plus(x: Any, y: Any) -> Any:
-    return x if _is_zero(y) else y if _is_zero(x) else x + y
-
-
 def _minus(x: Any, y: Any) -> Any:
-    return x if _is_zero(y) else -y if _is_zero(x) else x - y
+    """``x - y``, dropping a Python zero."""
+    return x if is_zero(y) else -y if is_zero(x) else x - y
 
 
-def _times(x: Any, y: Any) -> Any:
-    if _is_zero(x) or _is_zero(y):
-        return 0
-    return x if _is_one(y) else y if _is_one(x) else x * y
+def _product(x: Any, y: Any) -> Any:
+    """``x y``: a Python zero if either is one, the other if either is a Python one."""
+    return 0 if is_zero(x) or is_zero(y) else times(x, y)
 
 
 def _turn(frame: Cx | None, z: Cx, back: bool = False) -> Cx:
@@ -80,12 +68,12 @@ def _turn(frame: Cx | None, z: Cx, back: bool = False) -> Cx:
     if frame is None:
         return z
     f = Cx(frame.re, -frame.im) if back else frame
-    return Cx(_minus(_times(f.re, z.re), _times(f.im, z.im)), _plus(_times(f.re, z.im), _times(f.im, z.re)))
+    return Cx(_minus(_product(f.re, z.re), _product(f.im, z.im)), plus(_product(f.re, z.im), _product(f.im, z.re)))
 
 
 def _moving(frame: Cx | None, spin: Any, w: Cx, w_dot: Cx) -> Cx:
     """``F (w' + i Omega w)``: a point ``w`` of the level's frame moving at ``w'`` there, in the chart's frame."""
-    return _turn(frame, Cx(_minus(w_dot.re, _times(spin, w.im)), _plus(w_dot.im, _times(spin, w.re))))
+    return _turn(frame, Cx(_minus(w_dot.re, _product(spin, w.im)), plus(w_dot.im, _product(spin, w.re))))
 
 
 def _seeded(x: Any, rate: Any) -> Any:
@@ -131,20 +119,20 @@ def chart_velocity(a: Sequence[Any], V: Sequence[Cx], L: Any, ops: Any,
         w, theta, l = _values(w_jet), _value(theta_jet), base.last
         sin_theta, cos_theta = ops.sin(theta), ops.cos(theta)
         seen = _turn(frame, V[base.m - 2], back=True)  # the hinge's velocity in the level's frame, less its turn
-        seen = Cx(_plus(_minus(seen.re, rate), _times(spin, w.im)), _minus(seen.im, _times(spin, w.re)))  # and D'
-        theta_dot = _minus(_times(sin_theta, seen.re), _times(cos_theta, seen.im))
-        theta_dot = theta_dot if _is_one(l) else theta_dot / l
+        seen = Cx(plus(_minus(seen.re, rate), _product(spin, w.im)), _minus(seen.im, _product(spin, w.re)))  # and D'
+        theta_dot = _minus(_product(sin_theta, seen.re), _product(cos_theta, seen.im))
+        theta_dot = theta_dot if is_one(l) else theta_dot / l
         sin_phi, cos_phi = _value(jets.sin(phi_jet)), ops.cos(phi)
         alpha = _value(base.alpha(jets))
         # numerical trap: alpha cos(phi) vanishes at a pole of this level, the chart's singular set (its quality
         # event switches before it); alpha' grows like 1 / sqrt(hi) near an outer pole, where D' vanishes with it
-        shift = 0 if _is_zero(rate) else _value(base.alpha_rate(jets)) * rate * sin_phi
+        shift = 0 if is_zero(rate) else _value(base.alpha_rate(jets)) * rate * sin_phi
         a_dot.append(_minus(theta_dot, shift) / (alpha * cos_phi))
-        swing = _times(l, theta_dot)
-        w_dot = Cx(_plus(rate, swing * sin_theta), -(swing * cos_theta))
+        swing = _product(l, theta_dot)
+        w_dot = Cx(plus(rate, swing * sin_theta), -(swing * cos_theta))
         outer.append(_moving(frame, spin, w, w_dot))
         d = _value(inner.D)
-        rate, spin = w.dot(w_dot) / d, _plus(spin, w.cross(w_dot) / (d * d))
+        rate, spin = w.dot(w_dot) / d, plus(spin, w.cross(w_dot) / (d * d))
         base = inner
         turn = w_jet.scale(1 / base.D)
         frame_jets = turn if frame_jets is None else frame_jets * turn
@@ -159,11 +147,11 @@ def chart_velocity(a: Sequence[Any], V: Sequence[Cx], L: Any, ops: Any,
     num, den = 0, 0
     for k, (g, m, w) in enumerate(zip(along, moved, w_s)):
         seen = _turn(frame, V[k], back=True)
-        seen = Cx(_plus(_minus(seen.re, m.re), _times(spin, w.im)), _minus(_minus(seen.im, m.im), _times(spin, w.re)))
-        num, den = _plus(num, g.dot(seen)), _plus(den, g.abs2())
+        seen = Cx(plus(_minus(seen.re, m.re), _product(spin, w.im)), _minus(_minus(seen.im, m.im), _product(spin, w.re)))
+        num, den = plus(num, g.dot(seen)), plus(den, g.abs2())
     t_dot = num / den  # numerical trap: den vanishes only where the circle level's own derivative does (a fold)
     a_dot.append(t_dot)
-    circle = [_moving(frame, spin, w, Cx(_plus(m.re, t_dot * g.re), _plus(m.im, t_dot * g.im)))
+    circle = [_moving(frame, spin, w, Cx(plus(m.re, t_dot * g.re), plus(m.im, t_dot * g.im)))
               for g, m, w in zip(along, moved, w_s)]
     return a_dot, circle + outer[::-1]
 
