@@ -13,8 +13,8 @@ For ``method="hinges"`` at n = 4 (and ``--n``), CPU time of this process, the fa
 * a T = 20 call sampling 101 times (``SaveAt(t_eval=..., dense=False)``), at the default tolerance and at
   1e-10, against heyoka's bare ``propagate_grid`` on the same integrator and times;
 * the bytes of dense output per Taylor step (T = 10);
-* with ``--breakdown``: the pieces of a one-step call (the start's checks, the geometry's calls, the Ctrl-C
-  handler, heyoka's step), each timed alone.
+* with ``--breakdown``: the pieces of a one-step call (the start's checks, the start's projection, the geometry
+  call that checks the step, the Ctrl-C block, heyoka's step), each timed alone.
 
 ``--baseline DIR`` measures another checkout of the library (``DIR`` on ``PYTHONPATH``) in a
 subprocess, alternating with this one round by round, and prints both side by side: before and
@@ -128,8 +128,6 @@ def breakdown(n: int, rounds: int) -> dict[str, float]:
     """Seconds per call of the pieces of a one-step ``free_motion`` (no dense output), each timed alone over the
     ``STARTS`` starts (the fastest of ``rounds`` interleaved rounds).  Alone, a piece runs with its code and data
     in the caches: the pieces sum to less than the whole call."""
-    import signal
-
     from linkage.constraints import chain_system, start_state
     from linkage.motion import chart_metric, free_motion
     from manifold import SaveAt, StartCheck
@@ -152,10 +150,6 @@ def breakdown(n: int, rounds: int) -> dict[str, float]:
         with interruptible():
             pass
 
-    def sigint() -> None:
-        previous = signal.signal(signal.SIGINT, signal.getsignal(signal.SIGINT))
-        signal.signal(signal.SIGINT, previous)
-
     with comp.integrator(float, None, True, default_compact_mode(system, float)) as ta:
         def step(k: int) -> None:
             ta.state[:], ta.time, ta.pars[:] = states[k], 0.0, pars[: len(ta.pars)]
@@ -170,10 +164,10 @@ def breakdown(n: int, rounds: int) -> dict[str, float]:
             "  solve_constrained": lambda k: solve_constrained(system, checked[k].x0, checked[k].v0, SHORT_T,
                                                                save=no_dense, metric=metric),
             "    ConstrainedGeometry.start": lambda k: geo.start(*rows[k], SHORT_T, 1.0),
-            "      a geometry call": lambda k: geo(*rows[k]),
-            "        its compiled function": lambda k: geo.cf(columns[k], pars=one_column),
+            "      its projection call": lambda k: geo.projection(*rows[k]),
+            "    a geometry call (the step's check)": lambda k: geo(*rows[k]),
+            "      its compiled function": lambda k: geo.cf(columns[k], pars=one_column),
             "    interruptible block": lambda k: block(),
-            "      SIGINT handler in and out": lambda k: sigint(),
             "    heyoka: one step": step,
         }
         best = {name: np.inf for name in pieces}
@@ -238,7 +232,7 @@ if __name__ == "__main__":
         if args.breakdown:
             print(f"n = {n}, hinges, one-step call without dense output: CPU time of each piece alone")
             for k, v in breakdown(n, args.rounds).items():
-                print(f"  {k:32s} {1e6 * v:7.1f} us")
+                print(f"  {k:40s} {1e6 * v:7.1f} us")
         elif args.json:
             print(json.dumps(measure(n, args.rounds)))
         elif args.baseline is not None:
