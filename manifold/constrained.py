@@ -633,6 +633,7 @@ class ConstrainedGeometry:
                                            START_ROUNDING_MARGIN * scales * unit_roundoff(float))
         self.system, self._compiled = system, comp
         self._one_column = np.ascontiguousarray(self.pars[:, None])  # the parameters of a single row
+        # numpy's dtype of fp_type (None for multiprecision, whose numbers as_fp rebuilds at exactly its bits)
         self._dtype = None if isinstance(fp_type, MultiPrecision) else np.dtype(fp_type)
         self._max_steps = 3 + int(np.ceil(-np.log2(self.eps) / 50))  # Gauss-Newton steps of the projection, at most
 
@@ -673,7 +674,7 @@ class ConstrainedGeometry:
         """``cf`` (outputs ``m``, ``m``, ``N``, ``1``) on the rows stacked as ``columns``, split into its outputs."""
         B = columns[0].shape[1]
         args = np.ascontiguousarray(np.concatenate(columns))  # C-ordered (transposed rows concatenate F-ordered)
-        if args.dtype != self._dtype:  # float64 rows need no second copy; multiprecision always converts
+        if self._dtype is None or args.dtype != self._dtype:  # rows in fp_type need no second copy; mp always converts
             args = as_fp(args, self.fp)
         one = self._one_column[: cf.nparams]
         out = cf(args, pars=one if B == 1 else np.ascontiguousarray(np.repeat(one, B, axis=1)))
