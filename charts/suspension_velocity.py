@@ -76,6 +76,14 @@ def _moving(frame: Cx | None, spin: Any, w: Cx, w_dot: Cx) -> Cx:
     return _turn(frame, Cx(_minus(w_dot.re, _product(spin, w.im)), plus(w_dot.im, _product(spin, w.re))))
 
 
+def _relative(frame: Cx | None, spin: Any, v: Cx, w: Cx, known: Cx) -> Cx:
+    """``conj(F) v - i Omega w - known``: the velocity ``v`` of the point ``w`` seen from the level's frame (which
+    turns at ``Omega``), less the part ``known`` already accounted for."""
+    seen = _turn(frame, v, back=True)
+    return Cx(plus(_minus(seen.re, known.re), _product(spin, w.im)),
+              _minus(_minus(seen.im, known.im), _product(spin, w.re)))
+
+
 def _seeded(x: Any, rate: Any) -> Any:
     """A base quantity of the circle level as a jet in ``t`` (no dependence) moving at ``rate``."""
     return Jet(x.v, [0], rate, 0) if isinstance(x, Jet) else x
@@ -118,11 +126,10 @@ def chart_velocity(a: Sequence[Any], V: Sequence[Cx], L: Any, ops: Any,
         w_jet = last_hinge(base, theta_jet, jets)
         w, theta, l = _values(w_jet), _value(theta_jet), base.last
         sin_theta, cos_theta = ops.sin(theta), ops.cos(theta)
-        seen = _turn(frame, V[base.m - 2], back=True)  # the hinge's velocity in the level's frame, less its turn
-        seen = Cx(plus(_minus(seen.re, rate), _product(spin, w.im)), _minus(seen.im, _product(spin, w.re)))  # and D'
+        seen = _relative(frame, spin, V[base.m - 2], w, Cx(rate, 0))  # w' - D'
         theta_dot = _minus(_product(sin_theta, seen.re), _product(cos_theta, seen.im))
         theta_dot = theta_dot if is_one(l) else theta_dot / l
-        sin_phi, cos_phi = _value(jets.sin(phi_jet)), ops.cos(phi)
+        sin_phi, cos_phi = ops.sin(phi), ops.cos(phi)
         alpha = _value(base.alpha(jets))
         # numerical trap: alpha cos(phi) vanishes at a pole of this level, the chart's singular set (its quality
         # event switches before it); alpha' grows like 1 / sqrt(hi) near an outer pole, where D' vanishes with it
@@ -141,14 +148,12 @@ def chart_velocity(a: Sequence[Any], V: Sequence[Cx], L: Any, ops: Any,
         base = Base(_seeded(base.D, rate), _seeded(base.lo, rate), _seeded(base.hi, _minus(0, rate)), base.m,
                     base.rods)
     hinges = circle_level(base, Jet(a[-1], [1], 0, 0), jets)[:2]
-    along = [Cx(_part(h.re, "g"), _part(h.im, "g")) for h in hinges]  # d p / dt in the level's frame
-    moved = [Cx(_part(h.re, "d1"), _part(h.im, "d1")) for h in hinges]  # with t' = 0
+    along = [Cx(_in_t(h.re), _in_t(h.im)) for h in hinges]  # d p / dt in the level's frame
+    moved = [Cx(_along_base(h.re), _along_base(h.im)) for h in hinges]  # with t' = 0
     w_s = [_values(h) for h in hinges]
     num, den = 0, 0
-    for k, (g, m, w) in enumerate(zip(along, moved, w_s)):
-        seen = _turn(frame, V[k], back=True)
-        seen = Cx(plus(_minus(seen.re, m.re), _product(spin, w.im)), _minus(_minus(seen.im, m.im), _product(spin, w.re)))
-        num, den = plus(num, g.dot(seen)), plus(den, g.abs2())
+    for g, m, w, v in zip(along, moved, w_s, V):  # p_1 and p_2
+        num, den = plus(num, g.dot(_relative(frame, spin, v, w, m))), plus(den, g.abs2())
     t_dot = num / den  # numerical trap: den vanishes only where the circle level's own derivative does (a fold)
     a_dot.append(t_dot)
     circle = [_moving(frame, spin, w, Cx(plus(m.re, t_dot * g.re), plus(m.im, t_dot * g.im)))
@@ -156,8 +161,11 @@ def chart_velocity(a: Sequence[Any], V: Sequence[Cx], L: Any, ops: Any,
     return a_dot, circle + outer[::-1]
 
 
-def _part(x: Any, name: str) -> Any:
-    """The ``t`` derivative (``"g"``) or the rate along the base's motion (``"d1"``) of a circle-level jet."""
-    if not isinstance(x, Jet):
-        return 0
-    return x.g[0] if name == "g" else x.d1
+def _in_t(x: Any) -> Any:
+    """The ``t`` derivative of a circle-level jet (0 for a constant)."""
+    return x.g[0] if isinstance(x, Jet) else 0
+
+
+def _along_base(x: Any) -> Any:
+    """The rate of a circle-level jet along its base's motion, ``t`` held (0 for a constant)."""
+    return x.d1 if isinstance(x, Jet) else 0
