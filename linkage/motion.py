@@ -191,8 +191,8 @@ def choose_method(chain: Chain, options: dict[str, Any]) -> str:
     ``stabilisation``, ``rate``, ``compact_mode``, ...: the hinges); else ``"charts"``
     where the chain has an atlas and is nearly stretched (its dominant side within :data:`STRETCHED_GAP` of the
     perimeter from the others' sum: the top of a sphere range, where the hinge method's velocities collect
-    errors that no check sees); otherwise ``"hinges"``, the faster at every size and precision measured (12-29x
-    at equal error 1e-10 in float64 for n = 4..10, 6.7x in real128 at n = 4: ``docs/methods.md``, "which method
+    errors that no check sees); otherwise ``"hinges"``, the faster at every size and precision measured (8-19x
+    at equal error 1e-10 in float64 for n = 4..10, 5.2x in real128 at n = 4: ``docs/methods.md``, "which method
     when").
     """
     charts, hinges, given = set(_method_options("charts")), set(_method_options("hinges")), set(options)
