@@ -266,7 +266,8 @@ def needed_switches(atlas: Atlas, q_out: float) -> tuple[int, ...] | None:
         return None
     floor = np.min(known, axis=0)
     # an absolute margin: a quality evaluated in floating point may dip below its exact value by rounding
-    return tuple(int(m) for m in np.flatnonzero(floor <= q_out + FLOOR_MARGIN))
+    kept = tuple(int(m) for m in np.flatnonzero(floor <= q_out + FLOOR_MARGIN))
+    return None if len(kept) == len(floor) else kept  # all of them: the default integrator, not a copy of it
 
 
 def _start(metric, p0, v0, t_final, fp_type, stepper, q_out, switching, start, t_eval, chart):

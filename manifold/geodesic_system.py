@@ -270,8 +270,9 @@ class SymbolicPieces:
         :meth:`ambient_frame`).  The chart's
         second derivatives ``z_ab c^a c^b`` never appear: the constraints give the normal acceleration, and ``a'``
         needs only ``J``, which is why a step costs 0.6-0.7x the embedded one's Taylor recursions
-        (:mod:`manifold.ambient_velocity`); ``a'`` is :meth:`velocity_coefficients` (forward substitution, ``O(n)``,
-        where ``J`` is block triangular) and ``J a'`` the jets' derivative along it (:meth:`along`).  ``f`` gets the tangent part ``J a'`` of ``V``: ``V`` itself would let
+        (:mod:`manifold.ambient_velocity`); ``a'`` and ``J a'`` are :meth:`tangent_velocity`: the family's own
+        recursion where it has one, else :meth:`velocity_coefficients` (forward substitution, ``O(n)``, where ``J`` is
+        block triangular) and the jets' derivative along it (:meth:`along`).  ``f`` gets the tangent part ``J a'`` of ``V``: ``V`` itself would let
         rounding's normal drift feed back.  ``V - J a'`` is that normal drift (0 on the exact solution), and the
         last term damps it: left alone it turns into tangent velocity as the tangent space turns, and the energy
         error grew like ``t^0.6..0.9`` instead of ``sqrt(t)``.

@@ -4,8 +4,9 @@ The atlas loop (:func:`manifold.geodesic_solver.solve_chart_exp_ode`) is
 written once; a stepper only integrates the active chart's geodesic equations
 from ``(t, y)`` until ``t_final`` or a terminal event, and says which.  The
 events are declared once (:mod:`manifold.events`), numbered as in
-:func:`~manifold.events.chart_events`: first the ``n_quality`` switch events,
-then two wrap events per periodic parameter.
+:func:`~manifold.events.chart_events`: first the switch events (those the solve
+needs: a quality whose floor lies above the threshold gets none), then two wrap
+events per periodic parameter.
 
 Two kinds of stepper:
 
@@ -14,9 +15,10 @@ Two kinds of stepper:
   dense interpolants; the events are located on them by the shared
   :func:`locate_events` (:class:`ScipyStepper` is one);
 * a :class:`Stepper` that locates the events itself implements
-  :meth:`Stepper.session`, a context manager that prepares what it needs for
-  one solve (compiled code, private mutable state) and yields an ``advance``
-  function returning an :class:`Advance`: :class:`TaylorStepper` compiles the
+  :meth:`Stepper.session` ``(family, fp_type, *, form, backward, switches)``, a context manager that prepares
+  what it needs for one solve (compiled code, private mutable state) and yields an ``advance``
+  function returning an :class:`Advance`, and, if it leaves out the switch events
+  that cannot fire (``switches``), :meth:`Stepper.events` with the same list: :class:`TaylorStepper` compiles the
   events into heyoka's integrator (:func:`manifold.events.heyoka_events`), whose
   root finding on the Taylor polynomials misses no crossing inside a step.
 """

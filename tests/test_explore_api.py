@@ -342,7 +342,10 @@ def test_stream_continues_window_after_window(client: TestClient) -> None:
         ws.send_json({"type": "more"})
         second = ws.receive_json()
         assert second["index"] == 1 and second["times"][0] == 4.0 and second["times"][-1] == 8.0
-        assert np.array_equal(complex_of(second["hinges"])[0], complex_of(first["hinges"])[-1])
+        # the next window starts from the first's end, which the chart solver reads back into its chart (parameters
+        # polished by Gauss-Newton): the same point to rounding, not bit for bit (5.6e-16 apart here)
+        seam = np.max(np.abs(complex_of(second["hinges"])[0] - complex_of(first["hinges"])[-1]))
+        assert seam <= 1e-14
         assert max(second["energyError"]) <= 1e-12  # relative to the launch's energy
         ws.send_json({"type": "launch", "lengths": 4, "L": 3.0, "hinges": as_pairs(h), "velocity": as_pairs(1j * v)})
         error = ws.receive_json()
