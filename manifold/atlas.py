@@ -9,6 +9,7 @@ index ``i`` in ``atlas.charts``; ``atlas.ids[i]`` is a readable label.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Hashable, Sequence
 
 import numpy as np
@@ -81,6 +82,16 @@ class Atlas:
 
     def __len__(self) -> int:
         return len(self.charts)
+
+    @functools.cached_property
+    def chart_quality_floors(self) -> NDArray | None:
+        """The floor of each quality expression over every chart and parameter (the least of the charts'
+        :meth:`~manifold.family.ChartFamily.quality_floors`), or ``None`` where a chart's family knows none; computed
+        once, since it depends on the charts alone."""
+        floors = [chart.family.quality_floors(chart.family_parameters) if isinstance(chart, SymbolicChart) else None
+                  for chart in self.charts]
+        known = [f for f in floors if f is not None]
+        return np.min(known, axis=0) if known and len(known) == len(floors) else None
 
     def _chart(self, i: int) -> Chart:
         return self.charts[check_index("chart index", i, len(self.charts))]

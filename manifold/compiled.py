@@ -110,10 +110,9 @@ class CompiledFamily(ArtefactStore):
             return None
         return self._cfunc(("quality", fp_type), fp_type, lambda P: P.quality, "a")
 
-    def events(self, switches: Sequence[int] | None = None) -> list[Event]:
-        """The family's terminal events (:func:`manifold.events.chart_events`; the switch events of ``switches``
-        only, if given), in the canonical numbering."""
-        return self.pieces(float).events(switches)
+    def events(self) -> list[Event]:
+        """The family's terminal events (:func:`manifold.events.chart_events`), in the canonical numbering."""
+        return self.pieces(float).events()
 
     def event_values(self, fp_type: Any = float) -> Any:
         """Compiled ``(a, c) -> (g_1, ..., g_m, dg_1/dt, ..., dg_m/dt)``: the :meth:`events`' values and their rates

@@ -256,15 +256,12 @@ def solve_chart_exp_ode(
 
 def needed_switches(atlas: Atlas, q_out: float) -> tuple[int, ...] | None:
     """The qualities whose switch events can fire at the threshold ``q_out``: those whose floor over every chart of
-    ``atlas`` (:meth:`~manifold.family.ChartFamily.quality_floors`) does not lie above it; ``None`` (all) where the
+    ``atlas`` (:attr:`~manifold.atlas.Atlas.chart_quality_floors`) does not lie above it; ``None`` (all) where the
     family knows no floors.  With switching off (``q_out = -2``, below every quality) none.
     """
-    floors = [chart.family.quality_floors(chart.family_parameters) if isinstance(chart, SymbolicChart) else None
-              for chart in atlas.charts]
-    known = [f for f in floors if f is not None]
-    if len(known) < len(floors):
+    floor = atlas.chart_quality_floors
+    if floor is None:
         return None
-    floor = np.min(known, axis=0)
     # an absolute margin: a quality evaluated in floating point may dip below its exact value by rounding
     kept = tuple(int(m) for m in np.flatnonzero(floor <= q_out + FLOOR_MARGIN))
     return None if len(kept) == len(floor) else kept  # all of them: the default integrator, not a copy of it
