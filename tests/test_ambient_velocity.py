@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from linkage import Chain
-from linkage.constraints import ChainSystem
+from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
 from manifold import Precision, solve_chart_exp_ode
@@ -25,6 +25,7 @@ from manifold.compiled import Transfer, compiled
 from manifold.constrained import damping_rate, speed_scale
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper
+from manifold.terms import SegmentStart
 
 from .conftest import assert_same_motion, atlas_start, unit_speed_start
 
@@ -147,18 +148,22 @@ def test_the_constraints_see_the_tangent_velocity_so_rounding_does_not_feed_back
     assert np.max(np.abs(E / E[0] - 1)) <= 1.5e-14
 
 
-def _planted_drift_run(rate: float, dt: float, drift: float) -> tuple[float, float, float]:
+def _planted_drift_run(rate: float, dt: float, drift: float, chain: Chain | None = None,
+                       a0: np.ndarray | None = None, gamma: float | None = None) -> tuple[float, float, float]:
     """Integrate ``(a, V)`` in ``t`` from ``V = J c + n`` with ``n`` K-normal to the chart (``|n| = drift``) for
-    ``dt``; return ``|V - J a'|`` at the end, ``exp(-|gamma dt|)`` and the relative change of the tangent energy."""
-    chain = Chain(4, 2.7)
+    ``dt``; return ``|V - J a'|`` at the end, ``exp(-|gamma dt|)`` and the relative change of the tangent energy.
+
+    ``chain`` (default ``Chain(4, 2.7)``), the chart point ``a0`` (default ``(0.2, 0.3)``) and ``gamma`` (default
+    the speed rate :func:`~manifold.constrained.damping_rate` at ``rate``) set the run."""
+    chain = Chain(4, 2.7) if chain is None else chain
     atlas = chain.atlas()
     chart = atlas.charts[0]
     numerics = chart.numerics(chain.ambient_metric, atlas.switch_threshold, float)
     family, system = compiled(chart.family), ChainSystem(chain)
     transfer = Transfer(family, float, numerics.pars)
-    k, N = 2, 6
+    k, N = chain.n - 2, 2 * (chain.n - 1)
     rng = np.random.default_rng(0)
-    a0, c0 = np.array([0.2, 0.3]), rng.normal(size=2)
+    a0, c0 = (np.array([0.2, 0.3]) if a0 is None else a0), rng.normal(size=k)
 
     def tangent(a: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, float]:
         """``J c`` and ``E`` of ``c = g^-1 J^T W u``."""
@@ -171,7 +176,7 @@ def _planted_drift_run(rate: float, dt: float, drift: float) -> tuple[float, flo
     r = rng.normal(size=N)
     n = r - tangent(a0, r)[0]
     velocity = ConstrainedVelocity(system, rate=rate)
-    gamma = damping_rate(speed_scale(system), rate, E0, dt)
+    gamma = damping_rate(speed_scale(system), rate, E0, dt) if gamma is None else gamma
     with family.integrator(float, terms=(velocity,)) as ta:
         ta.state[:] = np.concatenate([a0, V0 + drift * n / np.linalg.norm(n)])
         ta.time = 0.0
@@ -206,6 +211,48 @@ def test_the_damping_keeps_the_normal_drift_out_of_the_energy():
     assert abs(undamped) > 1e-7
     assert abs(damped) < 0.25 * abs(undamped)
     assert abs(_planted_drift_run(DEFAULT_RATE, 3.0, 0.0)[2]) < 1e-14  # nothing planted: the motion's own energy
+
+
+def _nearly_stretched_segment(dt: float, masses: list | float = 1.0) -> tuple[Chain, np.ndarray, float, float]:
+    """A chain 5e-8 from the top of its range (its configuration space a sphere of radius about 2e-4) at a chart
+    point: ``(chain, a0, gamma, omega)`` with the default damping rate ``gamma`` of a segment of length ``dt``
+    started there at unit energy, and the turning rate ``omega = |f| / |v|`` there (``f`` the normal acceleration,
+    from the hinge reference)."""
+    chain = Chain(5, 5 - 5e-8, hinge_masses=masses)
+    atlas = chain.atlas()
+    chart = atlas.charts[0]
+    numerics = chart.numerics(chain.ambient_metric, atlas.switch_threshold, float)
+    a0 = np.array([0.3, -0.2, 0.4])
+    c0 = np.random.default_rng(0).normal(size=3)  # the planted-drift helper's own draw: the same velocity
+    family = compiled(chart.family)
+    E = float(family.transfer_at(float, numerics.pars)(a0[:, None], c0[:, None], np.zeros((8, 1)))[-1, 0])
+    segment = SegmentStart(family, float, 0.0, np.concatenate([a0, c0 / np.sqrt(E)]), dt, numerics.pars)
+    x, v = segment.ambient
+    f = HingeConstraints(chain).acceleration(x, v)
+    return chain, a0, ConstrainedVelocity(ChainSystem(chain)).damping(segment), float(np.linalg.norm(f) / np.linalg.norm(v))
+
+
+@pytest.mark.parametrize("masses", [1.0, [0.9, 30.6, 0.013, 0.047]])
+def test_the_damping_follows_the_turning_of_a_small_configuration_space(masses):
+    """Near the top of its range of ``L`` a chain's configuration space is a small sphere, whose tangent space turns
+    at the speed over its radius: far faster than the speed over the rod length.  The damping rate follows it,
+    ``gamma >= rate |f| / |v|`` (``f`` the normal acceleration, from the hinge reference), thousands of times the
+    speed rate; a planted drift then decays as ``exp(-gamma t)`` within a fraction of a turn and feeds the energy
+    less than at the speed rate (a drift left at the speed rate fed the energy 3.8e-11 in ``t = 0.9`` of a fuzz case
+    on this chain, 1.9e-12 damped at the turning rate).  Spread masses: Euclidean norms, so that the light hinges'
+    fast turning sets the rate."""
+    dt = 2e-4
+    chain, a0, gamma, omega = _nearly_stretched_segment(dt, masses)
+    speed_rate = damping_rate(speed_scale(ChainSystem(chain)), DEFAULT_RATE, 1.0, dt)
+    assert gamma >= DEFAULT_RATE * omega * (1 - 1e-6)  # the two normal accelerations agree to 4e-9 (spread masses)
+    assert gamma > 300 * speed_rate  # unit masses 5,500x, these spread ones 750x
+    if masses != 1.0:
+        return
+    left, expected, fed = _planted_drift_run(DEFAULT_RATE, dt, 1e-9, chain, a0, gamma)
+    assert left / 1e-9 == pytest.approx(expected, rel=0.1) and expected < 0.3
+    left_slow, _, fed_slow = _planted_drift_run(DEFAULT_RATE, dt, 1e-9, chain, a0)
+    assert left_slow / 1e-9 > 0.9
+    assert abs(fed) < 0.6 * abs(fed_slow)
 
 
 def test_a_bad_rate_is_refused_by_name():
