@@ -23,7 +23,8 @@ Run ``python -m benchmarks.energy_growth [--quick] [--long]``.  Prints:
    ``--methods`` takes ``hinges``, ``charts`` (the default chart path: Sundman's
    time, the state ``(a, V)``, its drift damped) and the chart path with one
    part switched off: ``charts:t`` (in ``t``), ``charts:ac`` (the state
-   ``(a, c)``), ``charts:undamped`` (damping rate 0), the chart path with the mass-weighted state ``(a, R J c)``,
+   ``(a, c)``), ``charts:undamped`` (damping rate 0), ``charts:jets`` (``a'`` read from ``V`` on the jets, not
+   by the charts' level recursion), the chart path with the mass-weighted state ``(a, R J c)``,
    ``charts:weighted`` (:mod:`manifold.weighted_velocity`); and ``charts:longdouble``
    (the default chart path in long double: at the same tolerance the same
    truncation, 2^-11 of the rounding).
@@ -105,7 +106,8 @@ def _options(chain: Chain, method: str, tol: float | None) -> dict:
         velocity: ConstrainedVelocity | WeightedVelocity | None = WeightedVelocity(ChainSystem(chain), block=2)
     else:
         velocity = None if method == "charts:ac" else ConstrainedVelocity(
-            ChainSystem(chain), **({"rate": 0.0} if method == "charts:undamped" else {}))
+            ChainSystem(chain), **({"rate": 0.0} if method == "charts:undamped" else
+                                   {"solve": "jets"} if method == "charts:jets" else {}))
     stepper = (TaylorStepper(tol=tol, velocity=velocity) if method == "charts:t"
                else SundmanStepper(ChainTimeFactor(chain), tol=tol, velocity=velocity))
     return {"method": "charts", "stepper": stepper}

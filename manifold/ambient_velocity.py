@@ -14,7 +14,8 @@ known without any chart: ``x'' = K^{-1} G^T lambda`` with
 
 .. math::
 
-    J a' = V, \qquad V' = M^{-1} f(M z(a) + m, M J a') - \gamma (V - J a'),
+    J a' = V, \qquad V' = M^{-1} f(M z(a) + m, M J a') - \gamma \big(\delta
+        - \tfrac{\langle \delta, J a' \rangle_W}{2 E} J a'\big), \qquad \delta = V - J a',
 
 (``p = M z + m`` the chart's map, :meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`),
 ``a'`` read from ``V`` by forward substitution where ``J`` is block triangular, as an iterated suspension's
@@ -33,7 +34,9 @@ forward substitution, an oblique projection, lets some of it into ``a'``; over
 long runs the energy error grew like ``t^0.6..0.9`` instead of ``sqrt(t)``
 undamped.  The last term damps the drift at the rate ``gamma`` of
 :func:`~manifold.constrained.damping_rate` (the hinge method's Baumgarte rate,
-scale-free), and vanishes on the exact solution.
+scale-free), and vanishes on the exact solution.  It leaves out the drift's part along ``J a'`` (``W`` the
+chart's metric, ``|J a'|_W^2 = 2 E``): rounding makes ``J a'`` longer or shorter than ``V``'s tangent part by a
+few hundredths of an eps on average, and damping that part pumped the bias into the energy.
 
 It is an equation term (:mod:`manifold.terms`): steppers take it as ``velocity=``
 (:class:`~manifold.steppers.TaylorStepper`, :class:`~manifold.sundman.SundmanStepper`).  Segments start and end in
@@ -74,13 +77,16 @@ from .validation import check_real
 
 #: Damping rate of ``V``'s normal drift (:class:`ConstrainedVelocity`), chosen by measurement in ``docs/methods.md``.
 DEFAULT_RATE = 3.0
+#: How :class:`ConstrainedVelocity` reads ``a'`` and ``J a'`` from ``V``: the chart family's own recursion (where it
+#: has one; else the jets), or forward substitution on the jets (``docs/math.md`` §7b).
+SOLVES = ("recursion", "jets")
 
 
 class ConstrainedVelocity(StateTerm):
     """Integrate a chart family's geodesics in ``(a, V)``, the normal acceleration from ``system``.
 
     An equation term (:mod:`manifold.terms`) that sets the state: its parameters are the system's
-    runtime parameters, then the damping rate ``gamma``; its switch map (:meth:`enter`, :meth:`leave`) converts
+    runtime parameters, then the damping rate ``gamma`` and ``1 / (2 E)`` of the segment; its switch map (:meth:`enter`, :meth:`leave`) converts
     ``(a, c) <-> (a, V)`` at each segment's ends.
 
     Parameters
@@ -97,41 +103,65 @@ class ConstrainedVelocity(StateTerm):
         motion's speed scale over the system's length (as the hinge method's
         Baumgarte rate: :func:`manifold.constrained.damping_rate`); 0 leaves the
         drift alone.  The default is chosen by measurement (``docs/methods.md``).
+    solve
+        How ``a'`` and ``J a'`` are read from ``V`` (:data:`SOLVES`): ``"recursion"`` (default), the chart family's
+        own recursion where it has one (the suspension charts' levels: 1.35-1.58x faster a step than the jets), or
+        ``"jets"``, forward substitution on the chart's jets.  The two give the same numbers, rounded differently:
+        the recursion's ``J a'`` is longer than ``V``'s tangent part by a few hundredths of an eps on average,
+        which makes the energy drift by one sign over long float64 runs (n = 4, T = 1.2e5: +0.9e-12 in every one
+        of three starts), where the jets' keeps Brouwer's ``sqrt(t)`` (``docs/methods.md``).  For float64 runs
+        beyond T of about 1e4, choose ``"jets"``.
+
+    Raises
+    ------
+    TypeError
+        If ``system`` is not a :class:`~manifold.constrained.ConstrainedSystem`.
+    ValueError
+        If ``rate`` is negative or not finite, or ``solve`` is not one of :data:`SOLVES`.
     """
 
     label = "(a, J c)"
 
-    def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE) -> None:
+    def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE, solve: str = "recursion") -> None:
         if not isinstance(system, ConstrainedSystem):
             raise TypeError(f"system must be a manifold.constrained.ConstrainedSystem, got {type(system).__name__}")
         self.system = system
         self.rate = check_real("rate", rate)
         if self.rate < 0:
             raise ValueError(f"rate must be a finite real number >= 0, got {rate!r}")
+        if solve not in SOLVES:
+            raise ValueError(f"solve must be one of {SOLVES}, got {solve!r}")
+        self.solve = solve
         self._compiled = compiled_constrained(system)
         self._values: dict[Any, NDArray] = {}  # fp_type -> parameter values
         self._speed_scale = speed_scale(system)  # once: each segment's damping rate needs it
         self._acceleration = self._compiled.acceleration(float, stabilised=False)  # the turning rate's, in float64
 
     def __repr__(self) -> str:
-        return f"ConstrainedVelocity({self.system!r}, rate={self.rate!r})"
+        return f"ConstrainedVelocity({self.system!r}, rate={self.rate!r}, solve={self.solve!r})"
 
     @property
     def key(self) -> Hashable:
-        """Identity of the compiled equations: the system's key and its metric's sparsity."""
-        return ("constrained-velocity", self.system.key, self._compiled.layout)
+        """Identity of the compiled equations: the system's key, its metric's sparsity and the velocity solve."""
+        return ("constrained-velocity", self.system.key, self._compiled.layout, self.solve)
+
+    @property
+    def n_constraint_pars(self) -> int:
+        """Number of the system's runtime parameters (they come first)."""
+        return len(self.parameters(float))
 
     @property
     def n_params(self) -> int:
-        """Number of its runtime parameters: the system's, then ``gamma``."""
-        return len(self.parameters(float)) + 1
+        """Number of its runtime parameters: the system's, then ``gamma`` and ``1 / (2 E)``."""
+        return self.n_constraint_pars + 2
 
     def equations(self, pieces: SymbolicPieces, equations: list[tuple], offset: int) -> list[tuple]:
         """:meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`, the system's parameters at
         ``par[offset ..]`` and ``gamma`` after them."""
         if equations:
             raise ValueError(f"{self!r} sets the state: it must be the first term")
-        return pieces.ambient_velocity_equations(self.pieces(pieces.fp_type), self.n_params - 1, offset)
+        return pieces.ambient_velocity_equations(self.pieces(pieces.fp_type), self.n_constraint_pars, offset,
+                                                 self.solve == "recursion")
 
     def pieces(self, fp_type: Any) -> ConstrainedPieces:
         """The system's symbolic equations in ``fp_type``."""
@@ -144,11 +174,12 @@ class ConstrainedVelocity(StateTerm):
         return self._values[fp_type]
 
     def __getstate__(self) -> dict:
-        """Pickle the system and the rate only (for ensembles on other processes): the compiled store holds a lock."""
-        return {"system": self.system, "rate": self.rate}
+        """Pickle the system, the rate and the solve only (for ensembles on other processes): the compiled store
+        holds a lock."""
+        return {"system": self.system, "rate": self.rate, "solve": self.solve}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["system"], state["rate"])  # type: ignore[misc]
+        self.__init__(state["system"], state["rate"], state["solve"])  # type: ignore[misc]
 
     def check(self, family: CompiledFamily, form: str) -> None:
         """Refuse a system of another ambient dimension than the family's points, and a ``form`` other than the
@@ -162,8 +193,12 @@ class ConstrainedVelocity(StateTerm):
                              f"(a, J c) and has none: drop velocity= or form=")
 
     def parameter_values(self, segment: SegmentStart) -> NDArray:
-        """The system's parameters, then the damping rate ``gamma`` of the segment (:meth:`damping`)."""
-        return np.concatenate([self.parameters(segment.fp_type), as_fp([self.damping(segment)], segment.fp_type)])
+        """The system's parameters, then the damping rate ``gamma`` of the segment (:meth:`damping`) and
+        ``1 / (2 E)`` (0 at rest) with ``E`` its energy."""
+        two_E = 2 * segment.energy
+        inverse = np.array([1 / two_E if two_E > 0 else 0 * two_E], dtype=segment.y.dtype)
+        return np.concatenate([self.parameters(segment.fp_type), as_fp([self.damping(segment)], segment.fp_type),
+                               inverse])
 
     def damping(self, segment: SegmentStart) -> float:
         r"""``gamma = sign(t_final - t) rate max(sqrt(2 E) s, omega)`` at the segment's start.
@@ -259,8 +294,9 @@ class ChartCarried(Term):
     def equations(self, pieces: SymbolicPieces, equations: list[tuple], offset: int) -> list[tuple]:
         """``equations`` with the term's slots appended (variables named after their place in the state)."""
         constrained, N = self.velocity.pieces(pieces.fp_type), pieces.N
-        n_constraint_pars = self.velocity.n_params - 1
-        moves = pieces.ambient_frame(constrained, n_constraint_pars, pieces.layout.terms_index)
+        n_constraint_pars = self.velocity.n_constraint_pars
+        moves = pieces.ambient_frame(constrained, n_constraint_pars, pieces.layout.terms_index,
+                                     self.velocity.solve == "recursion")
         # the term damps its own drift at the rate its stabilised form reads at par[0]: the velocity's gamma
         moves[hy.par[0]] = hy.par[pieces.layout.terms_index + n_constraint_pars]
         y = [hy.expression(f"carried{len(equations)}_{i}") for i in range(self.term.size(N))]

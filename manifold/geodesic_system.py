@@ -205,11 +205,11 @@ class SymbolicPieces:
                                       / hy.sum([w * w for w in weights]))
         return [solved[ci] for ci in self.c]
 
-    def tangent_velocity(self, u: list) -> tuple[list, list]:
+    def tangent_velocity(self, u: list, recursion: bool = True) -> tuple[list, list]:
         """``(c, J c)`` for an ambient velocity ``u``: the family's own recursion
-        (:meth:`~manifold.family.ChartFamily.velocity_solve`) where it has one, else :meth:`velocity_coefficients`
-        and :meth:`along` (the same numbers)."""
-        solved = self.family.velocity_solve(self.a, u, self.fp_type)
+        (:meth:`~manifold.family.ChartFamily.velocity_solve`) where it has one and ``recursion``, else
+        :meth:`velocity_coefficients` and :meth:`along` (the same numbers, rounded otherwise)."""
+        solved = self.family.velocity_solve(self.a, u, self.fp_type) if recursion else None
         if solved is not None:
             return solved
         c = self.velocity_coefficients(u)
@@ -256,49 +256,61 @@ class SymbolicPieces:
         M = self._par_matrix(lay.map_index)
         return [hy.sum([M[r][s] * self.z[s] for s in range(N)] + [hy.par[lay.map_index + N * N + r]]) for r in range(N)]
 
-    def ambient_velocity_equations(self, constrained: Any, n_constraint_pars: int, offset: int) -> list[tuple]:
+    def ambient_velocity_equations(self, constrained: Any, n_constraint_pars: int, offset: int,
+                                   recursion: bool = True) -> list[tuple]:
         r"""The geodesic with the chart frame's ambient velocity ``V = J c`` as state: ``(a, V)`` instead of ``(a, c)``.
 
         .. math::
 
-            J a' = V, \qquad V' = M^{-1} f(M z(a) + m, M J a') - \gamma (V - J a'),
+            J a' = V, \qquad V' = M^{-1} f(M z(a) + m, M J a') - \gamma \big(\delta - \frac{\langle \delta, J a'
+            \rangle_W}{2 E} J a'\big), \qquad \delta = V - J a',
 
         with ``f(x, v)`` the constrained acceleration ``K^{-1} G^T M_G^{-1} (-(dG/dt) v)`` of a
         :class:`~manifold.constrained.ConstrainedSystem` whose zero set is the family's image (its ``x``, ``v`` in
         the ambient frame; ``constrained`` its :class:`~manifold.constrained.ConstrainedPieces`, whose
-        ``n_constraint_pars`` parameters move to ``par[offset ..]``, and ``gamma`` the one after them:
-        :meth:`ambient_frame`).  The chart's
+        ``n_constraint_pars`` parameters move to ``par[offset ..]``, and ``gamma`` and ``1 / (2 E)`` the two after
+        them: :meth:`ambient_frame`).  The chart's
         second derivatives ``z_ab c^a c^b`` never appear: the constraints give the normal acceleration, and ``a'``
         needs only ``J``, which is why a step costs 0.6-0.7x the embedded one's Taylor recursions
         (:mod:`manifold.ambient_velocity`); ``a'`` and ``J a'`` are :meth:`tangent_velocity`: the family's own
-        recursion where it has one, else :meth:`velocity_coefficients` (forward substitution, ``O(n)``, where ``J`` is
-        block triangular) and the jets' derivative along it (:meth:`along`).  ``f`` gets the tangent part ``J a'`` of ``V``: ``V`` itself would let
-        rounding's normal drift feed back.  ``V - J a'`` is that normal drift (0 on the exact solution), and the
-        last term damps it: left alone it turns into tangent velocity as the tangent space turns, and the energy
-        error grew like ``t^0.6..0.9`` instead of ``sqrt(t)``.
+        recursion where it has one and ``recursion``, else :meth:`velocity_coefficients` (forward substitution,
+        ``O(n)``, where ``J`` is block triangular) and the jets' derivative along it (:meth:`along`).  ``f`` gets the
+        tangent part ``J a'`` of ``V``: ``V`` itself would let rounding's normal drift feed back.  ``delta`` is that
+        normal drift (0 on the exact solution), and the last term damps it: left alone it turns into tangent
+        velocity as the tangent space turns, and the energy error grew like ``t^0.6..0.9`` instead of ``sqrt(t)``.
+        The damping leaves out ``delta``'s part along ``J a'`` (``W`` the chart frame's metric, ``|J a'|_W^2 = 2 E``
+        with ``E`` the segment's energy): it moves no energy, where damping all of ``delta`` pumped the rounding
+        bias of ``J a'``'s length into it (``docs/math.md`` §7b).
         """
         lay, N = self.layout, self.N
         V = self.ambient_velocity()
         M_inv = self._par_matrix(lay.inverse_map_index)
-        c, JC = self.tangent_velocity(V)
-        moves = self.ambient_frame(constrained, n_constraint_pars, offset)
+        c, JC = self.tangent_velocity(V, recursion)
+        moves = self.ambient_frame(constrained, n_constraint_pars, offset, recursion)
         f = hy.subs([rhs for _, rhs in constrained.equations(False)[N:]], moves)
-        gamma = hy.par[offset + n_constraint_pars]
+        gamma, inverse_2E = hy.par[offset + n_constraint_pars], hy.par[offset + n_constraint_pars + 1]
+        drift = [V[r] - JC[r] for r in range(N)]
+        # numerical trap: J a' is V's tangent part only to rounding, longer or shorter on average by a few
+        # hundredths of an eps (the jets' forward substitution too); damping the whole drift would pump that bias
+        # into the energy, so the drift's part along J a' is left alone (K's inner product, |J a'|^2 = 2 E)
+        along = _dot(drift, self._apply_W(JC)) * inverse_2E
         return (list(zip(self.a, c))
-                + [(V[r], hy.sum([M_inv[r][s] * f[s] for s in range(N)]) - gamma * (V[r] - JC[r])) for r in range(N)])
+                + [(V[r], hy.sum([M_inv[r][s] * f[s] for s in range(N)]) - gamma * (drift[r] - along * JC[r]))
+                   for r in range(N)])
 
     def ambient_velocity(self) -> list[hy.expression]:
         """The state variables ``V`` of :meth:`ambient_velocity_equations` (the chart frame's ambient velocity)."""
         return [hy.expression(f"V{r}") for r in range(self.N)]
 
-    def ambient_frame(self, constrained: Any, n_constraint_pars: int, offset: int) -> dict:
+    def ambient_frame(self, constrained: Any, n_constraint_pars: int, offset: int, recursion: bool = True) -> dict:
         """The substitutions that put ``constrained``'s expressions (:class:`~manifold.constrained.ConstrainedPieces`)
         on the state ``(a, V)`` of :meth:`ambient_velocity_equations`: its point ``x -> M z(a) + m``, its velocity
-        ``v -> M J a'`` (``a'`` read from ``V``), its ``n_constraint_pars`` parameters ``par[j] -> par[offset + j]``.
+        ``v -> M J a'`` (``a'`` read from ``V`` by :meth:`tangent_velocity` with ``recursion``), its
+        ``n_constraint_pars`` parameters ``par[j] -> par[offset + j]``.
         """
         lay, N = self.layout, self.N
         M = self._par_matrix(lay.map_index)
-        JC = self.tangent_velocity(self.ambient_velocity())[1]
+        JC = self.tangent_velocity(self.ambient_velocity(), recursion)[1]
         v = [hy.sum([M[r][s] * JC[s] for s in range(N)]) for r in range(N)]
         moves = {hy.par[j]: hy.par[offset + j] for j in range(n_constraint_pars)}
         moves.update({xi: pi for xi, pi in zip(constrained.x, self.ambient_point())})

@@ -51,7 +51,7 @@ class WeightedVelocity(StateTerm):
     """Integrate a chart family's geodesics in ``(a, w)``, ``w = (R (x) I_b) J c`` with ``R^T R = B`` (module
     docstring), the normal acceleration from ``system``.
 
-    Its parameters: those of :class:`~manifold.ambient_velocity.ConstrainedVelocity` (the system's, then ``gamma``),
+    Its parameters: those of :class:`~manifold.ambient_velocity.ConstrainedVelocity` (the system's, then ``gamma`` and ``1 / (2 E)``),
     then the upper triangles of ``R`` and of ``R^{-1}``, row by row.
 
     Parameters

@@ -162,26 +162,30 @@ def test_a_segment_that_starts_at_t_final_is_empty_not_a_failure():
 @pytest.mark.parametrize("sundman", [False, True])
 def test_a_run_that_ends_on_a_switch_or_at_its_start_has_dense_output_there(sundman, ambient):
     """A switch that lands on ``t_final`` leaves a last segment without steps (so does ``t_final = 0``); its
-    continuous output is its one state.  Ending the run at each switch time and its neighbours finds such
-    runs (2 in ``tau``, 1 in ``t`` here: the test asks for at least one); there the motion equals the long run's."""
+    continuous output is its one state.  Ending the run at each switch time and its neighbours finds such runs;
+    whether a switch lands exactly on ``t_final`` is a matter of rounding, so the test tries a few starts in turn
+    and asks for one such run; at every ending tried the motion equals the long run's."""
     chain = Chain(4, 2.5)
     atlas = chain.atlas()
-    p0 = atlas.get_point(0, np.array([0.3, 1.0]))
-    i = atlas.get_chart_index(p0)
-    w0 = atlas.charts[i].tangent_vector(atlas.get_parameters(i, p0), np.array([1.0, -0.5]))
     velocity = ConstrainedVelocity(ChainSystem(chain)) if ambient else None
     stepper = SundmanStepper(ChainTimeFactor(chain), velocity=velocity) if sundman else TaylorStepper(velocity=velocity)
-    long = solve_chart_exp_ode(chain.metric(), p0, w0, 20.0, stepper=stepper)
-    assert long.n_switches >= 3
     empty = 0
-    for s in long.switches:
-        for T in (s.time, np.nextafter(s.time, 0), np.nextafter(s.time, 30)):
-            sol = solve_chart_exp_ode(chain.metric(), p0, w0, float(T), stepper=stepper)
-            empty += sol.segments[-1].n_steps == 0
-            assert np.abs(sol(np.array([T, T / 2]))[0] - long(np.array([T, T / 2]))[0]).max() <= 1e-12
+    for a0, c0 in (([0.3, 1.0], [1.0, -0.5]), ([1.2, 0.4], [1.0, -0.5]), ([0.1, 2.0], [0.2, 1.0])):
+        p0 = atlas.get_point(0, np.array(a0))
+        i = atlas.get_chart_index(p0)
+        w0 = atlas.charts[i].tangent_vector(atlas.get_parameters(i, p0), np.array(c0))
+        long = solve_chart_exp_ode(chain.metric(), p0, w0, 20.0, stepper=stepper)
+        assert long.n_switches >= 1
+        for s in long.switches:
+            for T in (s.time, np.nextafter(s.time, 0), np.nextafter(s.time, 30)):
+                sol = solve_chart_exp_ode(chain.metric(), p0, w0, float(T), stepper=stepper)
+                empty += sol.segments[-1].n_steps == 0
+                assert np.abs(sol(np.array([T, T / 2]))[0] - long(np.array([T, T / 2]))[0]).max() <= 1e-12
+        if empty:
+            break
     assert empty >= 1
     start = solve_chart_exp_ode(chain.metric(), p0, w0, 0.0, stepper=stepper)
-    assert np.array_equal(start(0.0)[0], p0)
+    assert np.abs(start(0.0)[0] - p0).max() <= 4e-16 * np.abs(p0).max()  # the start's chart point
 
 
 def test_with_masses_the_weighted_factor_saves_steps_and_a_unit_one_would_not():
