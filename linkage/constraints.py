@@ -486,9 +486,11 @@ class ChainSystem(ConstrainedSystem):
 
     @property
     def rounding_scales(self) -> NDArray:
-        """``2 R / l_k`` unit roundoffs (:attr:`Chain.rounding_floors`: ``c_k`` is twice the relative length error),
-        below the common floor for rods of comparable lengths; a short link's own."""
-        return 2 * self.chain.rounding_floors / (np.finfo(float).eps / 2)
+        """``4 R / l_k`` unit roundoffs: ``c_k`` is twice the relative length error, and rounding both of a rod's
+        ends moves its length by up to twice :attr:`Chain.rounding_floors` (``u R / l_k`` each); below the common
+        floor for rods of comparable lengths up to ``R = 4``, a short link's own.  Near full stretch, where the hinges'
+        coordinates approach ``R``, a start of five unit rods rounded from an exact one had ``|c_k| = 17 u``."""
+        return 4 * self.chain.rounding_floors / (np.finfo(float).eps / 2)
 
     @property
     def metric_matrix(self) -> NDArray:
