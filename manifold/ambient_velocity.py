@@ -107,10 +107,10 @@ class ConstrainedVelocity(StateTerm):
         How ``a'`` and ``J a'`` are read from ``V`` (:data:`SOLVES`): ``"recursion"`` (default), the chart family's
         own recursion where it has one (the suspension charts' levels: 1.35-1.58x faster a step than the jets), or
         ``"jets"``, forward substitution on the chart's jets.  The two give the same numbers, rounded differently:
-        the recursion's ``J a'`` is longer than ``V``'s tangent part by a few hundredths of an eps on average,
-        which makes the energy drift by one sign over long float64 runs (n = 4, T = 1.2e5: +0.9e-12 in every one
-        of three starts), where the jets' keeps Brouwer's ``sqrt(t)`` (``docs/methods.md``).  For float64 runs
-        beyond T of about 1e4, choose ``"jets"``.
+        the recursion's ``a'`` and ``J a'`` are longer or shorter than the point's own jets give, by a few hundredths
+        of an eps on average, which makes the energy drift by one sign over long float64 runs (n = 4, L = 2.5,
+        T = 1.2e5: +0.6e-12 to +1.1e-12 in each of six starts), where the jets' shows no drift of one sign
+        (-2.2e-13 to +5.4e-13; ``docs/methods.md``).  For float64 runs beyond T of about 1e4, choose ``"jets"``.
 
     Raises
     ------
@@ -157,7 +157,7 @@ class ConstrainedVelocity(StateTerm):
 
     def equations(self, pieces: SymbolicPieces, equations: list[tuple], offset: int) -> list[tuple]:
         """:meth:`~manifold.geodesic_system.SymbolicPieces.ambient_velocity_equations`, the system's parameters at
-        ``par[offset ..]`` and ``gamma`` after them."""
+        ``par[offset ..]``, ``gamma`` and ``1 / (2 E)`` after them, ``a'`` read as ``solve`` says."""
         if equations:
             raise ValueError(f"{self!r} sets the state: it must be the first term")
         return pieces.ambient_velocity_equations(self.pieces(pieces.fp_type), self.n_constraint_pars, offset,
