@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
@@ -78,13 +78,20 @@ def test_transport_is_an_isometry_to_1e_13_over_t_20(n):
 
 
 @given(chain=chains, seed=st.integers(0, 2**16), backward=st.booleans())
+@example(chain=Chain(3, 1.001, hinge_masses=[0.01, 1.0]), seed=41801, backward=True)
 @settings(max_examples=10)
 def test_transport_is_an_isometry_and_keeps_its_angle_with_the_velocity(chain, seed, backward):
     """Over T = 20, short links, spread masses and L near both ends included: the Gram matrix of two transported
     vectors and the velocity moves by at most 20 times the geodesic's own energy error plus the random walk of
     rounding, ``sqrt(steps) u`` (the transport is as isometric as the geodesic keeps its energy: both are
-    integrated with one tolerance; near the top of L both lose digits), and the vectors stay tangent as well.  A solve
-    may refuse (raise) only where the geodesic alone fails its energy check too."""
+    integrated with one tolerance; near the top of L both lose digits), and the vectors stay as tangent as the
+    geodesic's own velocity: their tangency residual, per kinetic norm, is at most 20 times the sum of that yardstick
+    and the velocity's largest residual per kinetic norm.  A solve may refuse (raise) only where the geodesic alone fails its
+    energy check too.
+
+    The example: L = 1.001, just above the singular length 1 of three unit rods, and a hinge of mass 0.01 that
+    whips round near the folded chain at seven times the mean speed for 0.002 of time.  The velocity leaves its
+    tangent space by 24 yardsticks there, the transported vectors by 47, and both decay under the stabilisation."""
     T = -20.0 if backward else 20.0
     try:
         drift, pt = _transport_drift(chain, seed, T)
@@ -95,15 +102,18 @@ def test_transport_is_an_isometry_and_keeps_its_angle_with_the_velocity(chain, s
         assert not alone.success, f"the transport refused where the geodesic alone succeeds: {refusal}"
         return
     sol = pt.carried.solution
-    # measured over 80 draws: the Gram matrix at most 5.5 times this yardstick, the tangency 7.3 times
+    # measured over 80 draws: the Gram matrix at most 5.5 times this yardstick; over 120 more and the 25 mass pairs
+    # of the example's chain, the tangency at most 3.3 times its own
     yardstick = sol.relative_energy_error + np.sqrt(sol.n_steps) * 2.0**-53
     assert drift <= 20 * yardstick
-    norms = np.sqrt(np.diagonal(_gram(chain, pt.vectors[0])))
+    gram0 = _gram(chain, np.concatenate([pt.vectors[0], pt.velocities[:1]]))
+    norms = np.sqrt(np.diagonal(gram0))
     hc = HingeConstraints(chain)
     x = chain.to_point(pt.hinges)
+    velocity_residual = (hc.tangency_residual(x, chain.to_point(pt.velocities)) / norms[2]).max()
     for a in range(2):
         w = chain.to_point(pt.vectors[:, a])
-        assert hc.tangency_residual(x, w).max() <= 20 * yardstick * norms[a]
+        assert hc.tangency_residual(x, w).max() <= 20 * (yardstick + velocity_residual) * norms[a]
 
 
 def _numpy_transport(chain: Chain, h0, v0, w0, ts) -> np.ndarray:
