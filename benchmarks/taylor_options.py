@@ -11,6 +11,12 @@ Run ``python -m benchmarks.taylor_options`` (about 20 minutes on 2 cores).  For 
 2. **Tolerance** at the default compile options: CPU time, final hinge error against a long-double
    reference (tol 1e-19) and relative energy error, for tol 1e-12 .. eps.
 3. **real128** at n = 4 over ``--real128-T`` with compact mode at each ``opt_level``.
+4. **The default chart path** (``free_motion(method="charts")``: the state ``(a, J c)`` in Sundman's time) compact
+   and unrolled, for the n in ``--default-n``: the CPU seconds of its first solve with heyoka's disk cache off
+   (cold) and again from a populated disk cache, and the CPU time of a T = 20 call at tol 1e-10 with 101 samples
+   (as ``benchmarks.peers`` calls it; the least of 5, the two modes interleaved), with their ratio and the
+   largest hinge distance between the two runs' samples.  What :func:`manifold.steppers.default_compact_mode`
+   decides from.  ``--sections 4`` runs it alone (about 5 minutes to n = 8).
 
 CPU time of this process, not wall time: the machine is shared.  Compare the ratios printed side by side.
 """
@@ -27,7 +33,12 @@ import time
 import heyoka as hy
 import numpy as np
 
+from linkage.constraints import ChainSystem
+from linkage.motion import free_motion
+from linkage.time_factor import ChainTimeFactor
 from manifold import Precision, SaveAt, TaylorStepper, compiled, solve_chart_exp_ode
+from manifold.ambient_velocity import ConstrainedVelocity
+from manifold.sundman import SundmanStepper
 
 from .study.experiments import generic_start
 
@@ -107,6 +118,41 @@ def tolerance_sweep(n: int, T: float, compact: bool, opt_level: int) -> list[dic
             for tol, (cpu, sol) in zip(TOLERANCES, runs)]
 
 
+def default_path_modes(n: int, tol: float = 1e-10, T: float = 20.0, repeat: int = 5) -> dict[bool, dict]:
+    """Section 4 for one ``n``: per compact mode, the cold and cached compile (CPU seconds of a first short solve)
+    and the least CPU time of a T = ``T`` call at ``tol`` with 101 samples; ``"end"`` the samples' hinges."""
+    chain, p0, v0 = generic_start(n)
+    h0, w0 = chain.from_point(p0), chain.from_point(v0)
+
+    def call(compact: bool, t_final: float, save: SaveAt = SaveAt(dense=False)):
+        stepper = SundmanStepper(ChainTimeFactor(chain), tol=tol, compact_mode=compact,
+                                 velocity=ConstrainedVelocity(ChainSystem(chain)))
+        return free_motion(chain, h0, w0, t_final, method="charts", stepper=stepper, save=save)
+
+    def first_solve(compact: bool) -> float:
+        compiled(chain.atlas().charts[0].family).clear()
+        hy.llvm_state.clear_memcache()
+        c0 = time.process_time()
+        call(compact, 0.01)
+        return time.process_time() - c0
+
+    out: dict[bool, dict] = {}
+    for compact in (False, True):
+        hy.llvm_state.set_diskcache_enabled(False)
+        cold = first_solve(compact)
+        hy.llvm_state.set_diskcache_enabled(True)
+        first_solve(compact)  # populate
+        out[compact] = {"cold": cold, "cached": first_solve(compact), "cpu": np.inf}
+    save = SaveAt(t_eval=np.linspace(0.0, T, 101), dense=False)
+    for _ in range(repeat):
+        for compact in (False, True):
+            c0 = time.process_time()
+            motion = call(compact, T, save)
+            row = out[compact]
+            row["cpu"], row["steps"], row["end"] = min(row["cpu"], time.process_time() - c0), motion.n_steps, motion.hinges
+    return out
+
+
 def _show(n: int, rows: list[dict]) -> None:
     base = next(r["cpu"] for r in rows if r["compact"] and r["opt"] == 3)
     for r in rows:
@@ -121,6 +167,8 @@ def main() -> None:
     parser.add_argument("--full-n", type=int, nargs="*", default=[3, 4], help="n at which compact_mode=False is tried")
     parser.add_argument("--timeout", type=float, default=900.0, help="seconds allowed to one compact_mode=False trial")
     parser.add_argument("--real128-T", type=float, default=10.0)
+    parser.add_argument("--default-n", type=int, nargs="+", default=[3, 4, 5, 6, 8], help="n of section 4")
+    parser.add_argument("--sections", default="1234", help="which sections to run, e.g. 4")
     parser.add_argument("--one", type=int, metavar="N", help=argparse.SUPPRESS)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as cache:  # a scratch disk cache: the user's is left alone
@@ -132,7 +180,28 @@ def main() -> None:
 
 
 def report(args: argparse.Namespace) -> None:
-    """The three tables of the module docstring."""
+    """The tables of the module docstring (those of ``args.sections``)."""
+    if "1" in args.sections:
+        compile_options(args)
+    if "2" in args.sections:
+        tolerances(args)
+    if "3" in args.sections:
+        real128(args)
+    if "4" in args.sections:
+        print("\n4. the default chart path ((a, J c) in Sundman's time, float64), unrolled and compact: CPU seconds "
+              "of a first solve cold (disk cache off) and cached, CPU time of a T = 20 call at tol 1e-10 with 101 "
+              "samples (least of 5, interleaved)")
+        print(f"{'n':>2} {'unrolled cold / cached s':>25} {'compact cold / cached s':>24} {'unrolled ms':>12} "
+              f"{'compact ms':>11} {'compact / unrolled':>19} {'steps':>6} {'hinge diff':>10}")
+        for n in args.default_n:
+            un, co = (row := default_path_modes(n))[False], row[True]
+            print(f"{n:>2} {un['cold']:12.2f} / {un['cached']:10.2f} {co['cold']:11.2f} / {co['cached']:10.2f} "
+                  f"{1e3 * un['cpu']:12.2f} {1e3 * co['cpu']:11.2f} {co['cpu'] / un['cpu']:19.2f} {un['steps']:>6} "
+                  f"{np.abs(un['end'] - co['end']).max():10.1e}", flush=True)
+
+
+def compile_options(args: argparse.Namespace) -> None:
+    """Section 1."""
     print(f"1. compile options (float64, run to T = {args.T:g}; run = least CPU time of 5, options in turn; "
           "ratio = run / run at compact, opt 3)")
     print(f"{'n':>2} {'compact':>7} {'opt':>3} {'cold s':>8} {'cached s':>8} {'run s':>8} {'steps':>6} {'ratio':>6}")
@@ -145,6 +214,10 @@ def report(args: argparse.Namespace) -> None:
         else:
             _show(n, rows)
 
+
+
+def tolerances(args: argparse.Namespace) -> None:
+    """Section 2."""
     default = TaylorStepper()
     print(f"\n2. tolerance ({default!r} otherwise; final hinge error against long double at tol 1e-19; CPU time as above)")
     print(f"{'n':>2} {'tol':>7} {'run s':>8} {'steps':>6} {'switches':>8} {'hinge err':>9} {'dE/E':>8}")
@@ -154,6 +227,9 @@ def report(args: argparse.Namespace) -> None:
             print(f"{n:>2} {tol:>7} {r['cpu']:8.4f} {r['steps']:>6} {r['switches']:>8} {r['hinge_error']:9.1e} "
                   f"{r['energy_error']:8.1e}", flush=True)
 
+
+def real128(args: argparse.Namespace) -> None:
+    """Section 3."""
     print(f"\n3. real128, n = 4, T = {args.real128_T:g} (compact mode; cold compile, disk cache off; one run each, CPU time)")
     print(f"{'opt':>3} {'compile s':>9} {'run s':>8} {'steps':>6} {'dE/E':>8}")
     builds = [compile_times(4, True, opt, hy.real128)[0] for _, opt in COMPACT_OPTIONS]
