@@ -108,9 +108,10 @@ class ConstrainedVelocity(StateTerm):
         own recursion where it has one (the suspension charts' levels: 1.35-1.58x faster a step than the jets), or
         ``"jets"``, forward substitution on the chart's jets.  The two give the same numbers, rounded differently:
         the recursion's ``a'`` and ``J a'`` are longer or shorter than the point's own jets give, by a few hundredths
-        of an eps on average, which makes the energy drift by one sign over long float64 runs (n = 4, L = 2.5,
-        T = 1.2e5: +0.6e-12 to +1.1e-12 in each of six starts), where the jets' shows no drift of one sign
-        (-2.2e-13 to +5.4e-13; ``docs/methods.md``).  For float64 runs beyond T of about 1e4, choose ``"jets"``.
+        of an eps on average, which makes the energy drift upwards over long float64 runs (n = 4, L = 2.5,
+        T = 1.2e5, eight starts: +2.3e-13 to +1.1e-12, mean +6.0e-13), where the jets' drifts a third as much
+        (-0.03e-13 to +5.4e-13, mean +2.4e-13; ``docs/methods.md``).  For float64 runs beyond T of about 1e4,
+        choose ``"jets"``.
 
     Raises
     ------
