@@ -1,7 +1,7 @@
 """The Taylor stepper's defaults, chosen by measurement: compile options, then tolerance.
 
-Run ``python -m benchmarks.taylor_options`` (about 20 minutes on 2 cores).  For each n (unit masses,
-``L = n - 1.3``, the unit-speed generic start of the study):
+Run ``python -m benchmarks.taylor_options`` (about 30 minutes on 2 cores; ``--sections`` picks tables).  For each
+n (unit masses, ``L = n - 1.3``, the unit-speed generic start of the study):
 
 1. **Compile options** of the float64 integrator: compact mode with LLVM ``opt_level`` 0..3, and
    straight-line code (``compact_mode=False``, against compact mode in a subprocess under ``--timeout``,
