@@ -15,8 +15,8 @@ n (unit masses, ``L = n - 1.3``, the unit-speed generic start of the study):
    and unrolled, for the n in ``--default-n``: the CPU seconds of its first solve with heyoka's disk cache off
    (cold) and again from a populated disk cache, and the CPU time of a T = 20 call at tol 1e-10 with 101 samples
    (as ``benchmarks.peers`` calls it; the least of 5, the two modes interleaved), with their ratio and the
-   largest hinge distance between the two runs' samples.  What :func:`manifold.steppers.default_compact_mode`
-   decides from.  ``--sections 4`` runs it alone (about 5 minutes to n = 8).
+   largest hinge distance between the two runs' samples: what the chart path's compile option is chosen
+   from (``TaylorStepper(compact_mode=...)``).  ``--sections 4`` runs it alone (about 5 minutes to n = 8).
 
 CPU time of this process, not wall time: the machine is shared.  Compare the ratios printed side by side.
 """

@@ -122,9 +122,6 @@ class ConstrainedVelocity(StateTerm):
     """
 
     label = "(a, J c)"
-    #: unrolled to n = 4: cold compiles in float64 with Sundman's time of 4-7 s (n = 3), 14-20 s (n = 4), 25-30 s
-    #: (n = 5), against 2-6 s compact (docs/methods.md, "Compile options")
-    unroll_max_dim = 2
 
     def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE, solve: str = "recursion") -> None:
         if not isinstance(system, ConstrainedSystem):

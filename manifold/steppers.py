@@ -121,25 +121,6 @@ class Stepper(ABC):
         return False
 
 
-def default_compact_mode(family: CompiledFamily, fp_type: Any, terms: Sequence[Term]) -> bool:
-    """heyoka's compact mode for a chart integrator of the composition ``terms``, chosen by measurement: unrolled
-    code in float64 where the state term allows it at the family's chart dimension
-    (:attr:`~manifold.terms.StateTerm.unroll_max_dim`) and nothing but a :class:`~manifold.terms.Clock` follows it,
-    compact otherwise.
-
-    Unrolled code makes a T = 20 call of the state ``(a, J c)`` in Sundman's time 1.2-1.4x faster at n = 3, 1.4-1.7x
-    at n = 4 and 2.3-2.5x at n = 8, for a cold compile that grows fast with ``n`` (4-7, 14-20 and 75-82 s of CPU,
-    against 2-9 s compact), paid once per machine, tolerance and direction (heyoka keeps it in its disk cache):
-    so, as for the hinge method (:func:`manifold.constrained.default_compact_mode`), unrolled where the cold compile
-    stays within about 15-20 s.  Carried terms (a transported vector, a Jacobi field) stay compact, as in the hinge
-    method, and so do the other precisions, which are not measured.  docs/methods.md, "Compile options", has the
-    table.
-    """
-    state, rest = terms[0], [term for term in terms[1:] if not isinstance(term, Clock)]
-    return not (is_double(fp_type) and not rest and isinstance(state, StateTerm)
-                and family.family.dim <= state.unroll_max_dim)
-
-
 class TaylorStepper(Stepper):
     """heyoka's adaptive Taylor method with event detection (any precision), on a composition of equation terms.
 
@@ -153,9 +134,12 @@ class TaylorStepper(Stepper):
     compact_mode, opt_level
         heyoka's compile options: compact mode (a loop over the decomposition
         instead of straight-line code) and LLVM's optimisation level, 0 to 3.
-        ``compact_mode=None`` (default) chooses by measurement, per state, chart dimension and precision
-        (:func:`default_compact_mode`).  The default ``opt_level`` 1 steps 13-16 % faster than 3 and compiles ~2x
-        faster (``benchmarks/taylor_options.py``).
+        Compact by default: unrolled code makes the default chart path (the state ``(a, J c)`` in Sundman's time)
+        1.2-1.7x faster at n = 3..6 and 2.3-2.5x at n = 8, but compiles for 4-7 s at n = 3, 14-20 s at n = 4 and
+        75-82 s at n = 8 (compact: 2-9 s), once per machine, tolerance and direction; the state ``(a, c)``, with
+        the chart's second derivatives, compiled unrolled for 185 s at n = 3 (docs/methods.md, "Compile
+        options").  ``compact_mode=False`` pays that once for long runs.  The default ``opt_level`` 1 steps 13-16 %
+        faster than 3 and compiles ~2x faster (``benchmarks/taylor_options.py``).
     velocity
         ``None`` (default): the state is ``(a, c)`` (the embedded or Christoffel
         form, :class:`~manifold.terms.ChartGeodesic`).  A :class:`manifold.ambient_velocity.ConstrainedVelocity`: the
@@ -172,10 +156,10 @@ class TaylorStepper(Stepper):
 
     name = "taylor"
 
-    def __init__(self, tol: float | None = None, *, compact_mode: bool | None = None,
+    def __init__(self, tol: float | None = None, *, compact_mode: bool = True,
                  opt_level: int = DEFAULT_OPT_LEVEL, velocity: Any = None, terms: Sequence[Term] = ()) -> None:
         self.tol = None if tol is None else check_real("tol", tol, positive=True, at_most=MAX_TOLERANCE)
-        self.compact_mode = None if compact_mode is None else check_bool("compact_mode", compact_mode)
+        self.compact_mode = check_bool("compact_mode", compact_mode)
         self.opt_level = check_index("opt_level", opt_level, 4)
         if velocity is not None and not isinstance(velocity, StateTerm):
             raise TypeError(f"velocity must be None or a manifold.ambient_velocity.ConstrainedVelocity instance "
@@ -237,8 +221,8 @@ class TaylorStepper(Stepper):
         terms = self.composition(family, form)
         state, clock = self.state(family, form), self.clock
         offsets = np.cumsum([family.layout.terms_index] + [term.n_params for term in terms])
-        compact = default_compact_mode(family, fp_type, terms) if self.compact_mode is None else self.compact_mode
-        with family.integrator(fp_type, self.tol, terms, backward, compact, self.opt_level, switches) as ta:
+        with family.integrator(fp_type, self.tol, terms, backward, self.compact_mode, self.opt_level,
+                               switches) as ta:
             def advance(t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool) -> Advance:
                 segment = SegmentStart(family, fp_type, t, y, t_final, pars)
                 carried = segment.carried if segment.carried.size else np.concatenate(

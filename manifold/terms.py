@@ -172,14 +172,9 @@ class StateTerm(Term):
     ----------
     label
         The state's name, e.g. ``"(a, J c)"``: a solution's ``method`` says which state was integrated.
-    unroll_max_dim
-        The largest chart dimension at which a float64 integrator of this state (with Sundman's time at most after
-        it) compiles unrolled by default (:func:`manifold.steppers.default_compact_mode`); 0, never: the chart's
-        second derivatives make ``(a, c)`` too large to unroll (185 s of compile at n = 3).
     """
 
     label: str = "(a, c)"
-    unroll_max_dim: int = 0
 
     @abstractmethod
     def check(self, family: CompiledFamily, form: str) -> None:

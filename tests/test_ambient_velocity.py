@@ -21,13 +21,12 @@ from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
 from manifold import Precision, solve_chart_exp_ode
-from manifold.ambient_velocity import DEFAULT_RATE, ChartCarried, ConstrainedVelocity
+from manifold.ambient_velocity import DEFAULT_RATE, ConstrainedVelocity
 from manifold.compiled import Transfer, compiled
 from manifold.constrained import damping_rate, speed_scale
-from manifold.steppers import TaylorStepper, default_compact_mode
-from manifold.sundman import SundmanStepper, SundmanTime
-from manifold.terms import ChartGeodesic, SegmentStart
-from manifold.transport import ParallelTransport
+from manifold.steppers import TaylorStepper
+from manifold.sundman import SundmanStepper
+from manifold.terms import SegmentStart
 
 from .conftest import assert_same_motion, atlas_start, unit_speed_start
 
@@ -135,28 +134,16 @@ def test_free_motion_uses_the_ambient_velocity_by_default_except_with_rod_densit
     assert np.array_equal(embedded(3.0)[1], explicit["(a, c)"](3.0)[1])
 
 
-def test_the_chart_path_compiles_unrolled_up_to_n_4_in_float64_and_unrolled_code_integrates_the_same_motion():
-    """``compact_mode=None`` chooses unrolled code for ``(a, J c)`` (with Sundman's time) in float64 at n = 3 and 4,
-    compact code at n = 5, in long double, for ``(a, c)`` and with a carried term; and the default (unrolled) run
-    of n = 4 and a compact one solve the same motion through a chart switch."""
-    def compact(n: int, fp_type=float, state: str = "(a, J c)", carried: bool = False) -> bool:
-        chain = Chain(n, n - 1.3)
-        velocity = ConstrainedVelocity(ChainSystem(chain))
-        terms = ((velocity if state == "(a, J c)" else ChartGeodesic("embedded")),
-                 *((ChartCarried(ParallelTransport(np.ones((1, 2 * (n - 1)))), velocity),) if carried else ()),
-                 SundmanTime(ChainTimeFactor(chain)))
-        return default_compact_mode(compiled(chain.atlas().charts[0].family), fp_type, terms)
-
-    assert [compact(n) for n in (3, 4, 5, 8)] == [False, False, True, True]
-    assert compact(4, np.longdouble) and compact(4, hy.real128)
-    assert compact(4, state="(a, c)") and compact(4, carried=True)
+def test_unrolled_chart_code_integrates_the_same_motion_as_the_compact_default():
+    """``compact_mode=False`` (straight-line code, for long runs) and the default compact code of the chart path
+    solve the same motion through a chart switch."""
     chain = Chain(4, 2.7)
     h0, v0 = unit_speed_start(chain, [1.45, 0.3], [1.0, 0.2])
     default = free_motion(chain, h0, v0, 8.0, method="charts")
-    packed = free_motion(chain, h0, v0, 8.0, method="charts", stepper=SundmanStepper(
-        ChainTimeFactor(chain), compact_mode=True, velocity=ConstrainedVelocity(ChainSystem(chain))))
+    unrolled = free_motion(chain, h0, v0, 8.0, method="charts", stepper=SundmanStepper(
+        ChainTimeFactor(chain), compact_mode=False, velocity=ConstrainedVelocity(ChainSystem(chain))))
     assert default.solution.n_switches >= 1
-    assert_same_motion(default.solution, packed.solution, 8.0)
+    assert_same_motion(unrolled.solution, default.solution, 8.0)
 
 
 def test_the_constraints_see_the_tangent_velocity_so_rounding_does_not_feed_back():
