@@ -135,7 +135,7 @@ class TaylorStepper(Stepper):
         heyoka's compile options: compact mode (a loop over the decomposition
         instead of straight-line code) and LLVM's optimisation level, 0 to 3.
         Compact by default: unrolled code makes the default chart path (the state ``(a, J c)`` in Sundman's time)
-        1.2-1.7x faster at n = 3..6 and 2.3-2.5x at n = 8, but compiles for 4-7 s at n = 3, 14-20 s at n = 4 and
+        1.2-2.2x faster at n = 3..6 and 2.3-2.5x at n = 8, but compiles for 4-7 s at n = 3, 14-20 s at n = 4 and
         75-82 s at n = 8 (compact: 2-9 s), once per machine, tolerance and direction; the state ``(a, c)``, with
         the chart's second derivatives, compiled unrolled for 185 s at n = 3 (docs/methods.md, "Compile
         options").  ``compact_mode=False`` pays that once for long runs.  The default ``opt_level`` 1 steps 13-16 %
