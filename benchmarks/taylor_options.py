@@ -188,16 +188,21 @@ def report(args: argparse.Namespace) -> None:
     if "3" in args.sections:
         real128(args)
     if "4" in args.sections:
-        print("\n4. the default chart path ((a, J c) in Sundman's time, float64), unrolled and compact: CPU seconds "
-              "of a first solve cold (disk cache off) and cached, CPU time of a T = 20 call at tol 1e-10 with 101 "
-              "samples (least of 5, interleaved)")
-        print(f"{'n':>2} {'unrolled cold / cached s':>25} {'compact cold / cached s':>24} {'unrolled ms':>12} "
-              f"{'compact ms':>11} {'compact / unrolled':>19} {'steps':>6} {'hinge diff':>10}")
-        for n in args.default_n:
-            un, co = (row := default_path_modes(n))[False], row[True]
-            print(f"{n:>2} {un['cold']:12.2f} / {un['cached']:10.2f} {co['cold']:11.2f} / {co['cached']:10.2f} "
-                  f"{1e3 * un['cpu']:12.2f} {1e3 * co['cpu']:11.2f} {co['cpu'] / un['cpu']:19.2f} {un['steps']:>6} "
-                  f"{np.abs(un['end'] - co['end']).max():10.1e}", flush=True)
+        default_path(args)
+
+
+def default_path(args: argparse.Namespace) -> None:
+    """Section 4."""
+    print("\n4. the default chart path ((a, J c) in Sundman's time, float64), unrolled and compact: CPU seconds "
+          "of a first solve cold (disk cache off) and cached, CPU time of a T = 20 call at tol 1e-10 with 101 "
+          "samples (least of 5, interleaved)")
+    print(f"{'n':>2} {'unrolled cold / cached s':>25} {'compact cold / cached s':>24} {'unrolled ms':>12} "
+          f"{'compact ms':>11} {'compact / unrolled':>19} {'steps':>6} {'hinge diff':>10}")
+    for n in args.default_n:
+        un, co = (row := default_path_modes(n))[False], row[True]
+        print(f"{n:>2} {un['cold']:12.2f} / {un['cached']:10.2f} {co['cold']:11.2f} / {co['cached']:10.2f} "
+              f"{1e3 * un['cpu']:12.2f} {1e3 * co['cpu']:11.2f} {co['cpu'] / un['cpu']:19.2f} {un['steps']:>6} "
+              f"{np.abs(un['end'] - co['end']).max():10.1e}", flush=True)
 
 
 def compile_options(args: argparse.Namespace) -> None:
@@ -213,7 +218,6 @@ def compile_options(args: argparse.Namespace) -> None:
             print(f"{n:>2}   False   3   did not compile and run within {args.timeout:g} s", flush=True)
         else:
             _show(n, rows)
-
 
 
 def tolerances(args: argparse.Namespace) -> None:
