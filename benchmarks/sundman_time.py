@@ -28,7 +28,6 @@ import heyoka as hy
 import numpy as np
 
 from charts.suspension_symbolic import SuspensionFamily
-from linkage import Chain
 from linkage.constraints import ChainSystem, start_state
 from manifold.constrained import ConstrainedLayout, ConstrainedPieces
 from manifold.events import heyoka_events
