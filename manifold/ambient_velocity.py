@@ -240,7 +240,7 @@ class ConstrainedVelocity(StateTerm):
         transfer, adv = segment.transfer, advance
         out = None if adv.dense is None else _ChartDense(adv.dense, transfer)
         return Advance(adv.t, _chart_states(adv.y[None, :], transfer)[0], adv.n_steps, adv.event, adv.step_times,
-                       _chart_states(adv.step_states, transfer), out, adv.failure)
+                       _chart_states(adv.step_states, transfer), out, adv.failure, n_wraps=adv.n_wraps)
 
 
 class ChartCarried(Term):

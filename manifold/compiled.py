@@ -110,9 +110,10 @@ class CompiledFamily(ArtefactStore):
             return None
         return self._cfunc(("quality", fp_type), fp_type, lambda P: P.quality, "a")
 
-    def events(self) -> list[Event]:
-        """The family's terminal events (:func:`manifold.events.chart_events`), in the canonical numbering."""
-        return self.pieces(float).events()
+    def events(self, wraps: bool = True) -> list[Event]:
+        """The family's terminal events (:func:`manifold.events.chart_events`), in the canonical numbering; without
+        the wraps (``wraps=False``) those its Taylor integrators declare (:meth:`composition`)."""
+        return self.pieces(float).events(wraps=wraps)
 
     def event_values(self, fp_type: Any = float) -> Any:
         """Compiled ``(a, c) -> (g_1, ..., g_m, dg_1/dt, ..., dg_m/dt)``: the :meth:`events`' values and their rates
@@ -169,7 +170,8 @@ class CompiledFamily(ArtefactStore):
         ``(a, c)`` in the embedded form), each term's parameters after the previous one's from
         :attr:`~manifold.geodesic_system.Layout.terms_index`, its events after the family's (the atlas loop reads
         what each event index means here).  ``switches``: the qualities whose switch events are kept (``None``: all;
-        :meth:`~manifold.family.ChartFamily.quality_floors`).
+        :meth:`~manifold.family.ChartFamily.quality_floors`).  No wrap events: the Taylor steppers wrap the periodic
+        parameters between steps (:func:`manifold.steppers.angle_wrap`).
         """
         terms = _checked_terms(terms)
         switches = None if switches is None else tuple(switches)
@@ -177,7 +179,7 @@ class CompiledFamily(ArtefactStore):
         def build() -> tuple[list[tuple], list[Event]]:
             P = self.pieces(fp_type)
             equations: list[tuple] = []
-            events, offset = P.events(switches), self.layout.terms_index
+            events, offset = P.events(switches, wraps=False), self.layout.terms_index  # wrapped between steps
             for term in terms:
                 equations = term.equations(P, equations, offset)
                 events += term.events(equations, offset)

@@ -9,7 +9,9 @@ family's events (:func:`chart_events`, numbered in this order everywhere) are
   qualities whose floor lies above ``q_out`` (they can never fire:
   :meth:`~manifold.family.ChartFamily.quality_floors`);
 * two wrap events per periodic parameter ``a_p``: ``a_p - pi`` rising and
-  ``a_p + pi`` falling (the loop wraps ``a_p`` by ``-+ 2 pi`` and stays in the chart);
+  ``a_p + pi`` falling (the loop wraps ``a_p`` by ``-+ 2 pi`` and stays in the chart), for the
+  steppers that locate events on dense output only: heyoka's Taylor steppers wrap between steps
+  instead (:func:`manifold.steppers.angle_wrap`), which ends no segment;
 
 and Sundman's time adds a stop event, last (:func:`stop_event`).
 
@@ -77,8 +79,9 @@ class Event:
     shift: int = 0
 
 
-def chart_events(pieces: Any, switches: Sequence[int] | None = None) -> list[Event]:
-    """The chart family's events, in their canonical order: the switch events, then two wraps per periodic parameter.
+def chart_events(pieces: Any, switches: Sequence[int] | None = None, wraps: bool = True) -> list[Event]:
+    """The chart family's events, in their canonical order: the switch events, then two wraps per periodic parameter
+    (unless ``wraps`` is false: the Taylor integrators wrap between steps).
 
     ``pieces`` is the family's :class:`~manifold.geodesic_system.SymbolicPieces`; ``q_out`` is its runtime parameter
     (:attr:`~manifold.geodesic_system.Layout.q_out_index`), so one compiled system serves every threshold.
@@ -88,7 +91,7 @@ def chart_events(pieces: Any, switches: Sequence[int] | None = None) -> list[Eve
     q_out = hy.par[pieces.layout.q_out_index]
     kept = range(len(pieces.quality)) if switches is None else switches
     events = [Event(pieces.quality[m] - q_out, FALLING, SWITCH) for m in kept]
-    for p in pieces.family.periodic:
+    for p in pieces.family.periodic if wraps else ():
         events += [Event(pieces.a[p] - hy.pi, RISING, WRAP, p, -1), Event(pieces.a[p] + hy.pi, FALLING, WRAP, p, 1)]
     return events
 

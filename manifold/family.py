@@ -37,9 +37,9 @@ class ChartFamily(ABC):
     n_params
         Number of family parameters ``theta``.
     periodic
-        Indices of ``2 pi``-periodic parameters.  The integrator wraps them into
-        ``[-pi, pi]``: heyoka's error control is relative to the state's size,
-        so an angle left to grow to ``O(1000)`` would cost three digits.
+        Indices of ``2 pi``-periodic parameters.  The steppers wrap them into
+        ``[-pi, pi]`` (heyoka's between steps, :func:`manifold.steppers.angle_wrap`): heyoka's error control is
+        relative to the state's size, so an angle left to grow to ``O(1000)`` would cost three digits.
     """
 
     dim: int

@@ -204,6 +204,7 @@ def solve_chart_exp_ode(
             if grid is not None:
                 n_grid = sol.record_grid(grid, n_grid, adv, sign, num[i].point_velocity_states)
             a, c, carried, t = adv.y[:k], adv.y[k : 2 * k], adv.y[2 * k :], adv.t
+            n_wraps += adv.n_wraps  # a Taylor stepper wraps between its steps; a dense stepper ends at a wrap event
             if reports is not None:
                 reports.segment(t, f"chart {atlas.ids[i]}")
             if violation is not None:
@@ -225,7 +226,7 @@ def solve_chart_exp_ode(
                 if t != t_end:
                     message = f"stopped at t = {t} by a stop event (chart {atlas.ids[i]})"
                 break
-            if event.kind == WRAP:  # a periodic parameter left [-pi, pi]: wrap it, same chart
+            if event.kind == WRAP:  # a dense stepper's periodic parameter left [-pi, pi]: wrap it, same chart
                 a[event.parameter] += two_pi if event.shift > 0 else -two_pi
                 n_wraps += 1
                 continue

@@ -331,7 +331,8 @@ class SymbolicPieces:
         u = hy.expression(SUNDMAN_TIME)
         return [(lhs, s * rhs) for lhs, rhs in equations] + [(u, s * hy.par[offset])]
 
-    def events(self, switches: Sequence[int] | None = None) -> list[Event]:
+    def events(self, switches: Sequence[int] | None = None, wraps: bool = True) -> list[Event]:
         """The family's terminal events (:func:`manifold.events.chart_events`): switch events
-        ``quality_m(a) - q_out`` (those of ``switches`` only, if given), then two wraps per periodic parameter."""
-        return chart_events(self, switches)
+        ``quality_m(a) - q_out`` (those of ``switches`` only, if given), then two wraps per periodic parameter
+        (with ``wraps``)."""
+        return chart_events(self, switches, wraps)

@@ -6,7 +6,8 @@ from ``(t, y)`` until ``t_final`` or a terminal event, and says which.  The
 events are declared once (:mod:`manifold.events`), numbered as in
 :func:`~manifold.events.chart_events`: first the switch events (those the solve
 needs: a quality whose floor lies above the threshold gets none), then two wrap
-events per periodic parameter.
+events per periodic parameter, which only a :class:`DenseStepper` meets: heyoka's steppers wrap the periodic
+parameters between steps instead (:func:`angle_wrap`), so a wrap ends no segment there.
 
 Two kinds of stepper:
 
@@ -28,7 +29,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import heyoka as hy
@@ -41,7 +42,7 @@ from .budget import allowance, dense_bytes_per_step, spend
 from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
 from .events import Event, first_crossing
 from .interrupt import propagate_grid, propagate_until
-from .precision import is_double, unit_roundoff
+from .precision import as_fp, is_double, unit_roundoff
 from .progress import step_callback
 from .solution import CallableDense, DenseOutput, PointDense, SecondOrderDense, TaylorDense
 from .terms import ChartGeodesic, Clock, SegmentStart, StateTerm, Term
@@ -73,6 +74,8 @@ class Advance:
     samples
         States at the times of the grid the stepper was given, in order, as many as it reached (``None``
         unless it sampled a grid itself: :func:`taylor_advance` with ``grid``).
+    n_wraps
+        Periodic parameters moved by ``2 pi`` between steps (:func:`angle_wrap`) inside the segment.
     """
 
     t: Any
@@ -84,6 +87,7 @@ class Advance:
     dense: DenseOutput | None = None
     failure: str | None = None
     samples: NDArray | None = None
+    n_wraps: int = 0
 
 
 #: ``advance(t, y, t_final, pars, dense) -> Advance``
@@ -228,12 +232,13 @@ class TaylorStepper(Stepper):
                 carried = segment.carried if segment.carried.size else np.concatenate(
                     [segment.carried] + [term.slots(segment) for term in self.terms])  # the first segment: starts
                 y_in = np.concatenate([state.enter(segment), carried])
-                if t_final == t:  # nothing to integrate (a switch or wrap event can end a segment exactly at t_final)
+                if t_final == t:  # nothing to integrate (a switch event can end a segment exactly at t_final)
                     return state.leave(Advance(t, y_in, 0, None, np.array([t]), y_in[None, :],
                                                PointDense(y_in) if dense else None), segment)
                 values = np.concatenate([pars] + [parameter_values(term, segment) for term in terms])
                 if clock is None:
-                    adv = taylor_advance(ta, t, y_in, t_final, values, dense, fp_type)
+                    adv = taylor_advance(ta, t, y_in, t_final, values, dense, fp_type,
+                                         periodic=family.family.periodic)
                 else:
                     adv = clock.advance(ta, segment, y_in, values, int(offsets[terms.index(clock)]), dense)
                 return state.leave(adv, segment)
@@ -254,8 +259,36 @@ def taylor_relative_tolerance(tol: float | None, fp_type: Any) -> float:
     return 2 * unit_roundoff(fp_type) if tol is None else max(tol, 2 * unit_roundoff(fp_type))
 
 
+def angle_wrap(state: Any, periodic: Sequence[int], fp_type: Any) -> Callable[[], int] | None:
+    """Between two steps, move each periodic parameter ``state[p]`` that has left ``[-pi, pi]`` back by ``2 pi``;
+    the function returns how many it moved (``None`` without periodic parameters).
+
+    heyoka reads the state afresh at each step, so a wrap between steps costs neither a step nor a segment
+    (terminal events at ``+-pi`` ended a segment at each wrap, and with it the conversions, the parameter packing and
+    the grid's Newton solves around it: 8.3-11.4 ms against 6.3 ms for a T = 20 run at n = 4 with three wraps).
+    The angle is at most one step's change past ``+-pi`` when it is wrapped; the chart map is periodic in it.
+    ``x -+ 2 pi`` is exact for ``x`` in ``[pi, 4 pi]`` (Sterbenz): a wrap rounds only through the constant ``2 pi``.
+    """
+    if not periodic:
+        return None
+    two_pi = 8 * np.arctan(as_fp(1.0, fp_type))  # 2 pi exact to fp_type
+    pi = two_pi / 2
+
+    def wrap() -> int:
+        moved = 0
+        for p in periodic:
+            x = state[p]
+            if x > pi:
+                state[p], moved = x - two_pi, moved + 1
+            elif x < -pi:
+                state[p], moved = x + two_pi, moved + 1
+        return moved
+
+    return wrap
+
+
 def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool, fp_type: Any,
-                   positions: int = 0, grid: NDArray | None = None) -> Advance:
+                   positions: int = 0, grid: NDArray | None = None, periodic: Sequence[int] = ()) -> Advance:
     """Run the heyoka integrator ``ta`` from ``(t, y)`` to ``t_final`` or its first terminal event.
 
     Shared by every Taylor method (chart geodesics, constrained motion): sets
@@ -269,6 +302,9 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     (:func:`manifold.interrupt.propagate_grid`, the same steps; no Python per step) into
     :attr:`Advance.samples`, and the states kept for the checks (:attr:`Advance.step_states`) are those at the
     grid's times after ``t`` and at the end.
+
+    The state components ``periodic`` (a chart's periodic parameters) are wrapped into ``[-pi, pi]`` between
+    steps (:func:`angle_wrap`), by a step callback.
     """
     if positions and len(y) != 2 * positions:
         raise ValueError(f"positions = {positions} needs a state (x, v) of {2 * positions} components, got {len(y)}")
@@ -279,8 +315,16 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     if n_events:
         ta.reset_cooldowns()
     progress = step_callback()  # None unless asked; it only reads the integrator: results are the same without it
+    wrap, wraps = angle_wrap(ta.state, periodic, fp_type), [0]
+
+    def between(ta: Any) -> bool:
+        if wrap is not None:
+            wraps[0] += wrap()
+        return progress is None or progress(ta)
+
+    plain = between if wrap or progress else None  # the callback without dense output: none, unless needed
     if grid is not None and not dense:
-        return _sampled_advance(ta, t, t_final, grid, n_events, progress)
+        return replace(_sampled_advance(ta, t, t_final, grid, n_events, plain), n_wraps=wraps[0])
     step_times, tcs, tops = [ta.time], [], []
     # ta.tc is a view of the integrator's coefficient buffer, which heyoka fills in place at every step and never
     # moves (every precision): taken once here, not per step (~0.7 us a step), and only to keep it (~3 us a call)
@@ -291,17 +335,17 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     def record(ta: Any) -> bool:
         tcs.append(tc.copy())
         step_times.append(ta.time)
-        return progress is None or progress(ta)
+        return between(ta)
 
     def record_positions(ta: Any) -> bool:
         tcs.append(head.copy())
         tops.append(top.copy())
         step_times.append(ta.time)
-        return progress is None or progress(ta)
+        return between(ta)
 
     # The Taylor coefficients of each step, kept by a step callback: heyoka's c_output gives the same numbers
     # but builds a continuous_output (an LLVM state) on every call, ~2.5 ms per segment.
-    callback = (record_positions if positions else record) if dense else progress
+    callback = (record_positions if positions else record) if dense else plain
     per_step = dense_bytes_per_step(ta, positions) if dense else 0
     outcome, n_steps, stop = propagate_until(ta, t_final, callback=callback, write_tc=dense,
                                              max_steps=allowance(per_step))
@@ -321,7 +365,7 @@ def taylor_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, den
     else:
         out = PointDense(y_end) if dense else None
         times, states = np.array([ta.time]), y_end[None, :]
-    return Advance(ta.time, y_end, n_steps, event, times, states, out, failure)
+    return Advance(ta.time, y_end, n_steps, event, times, states, out, failure, n_wraps=wraps[0])
 
 
 def _sampled_advance(ta: Any, t: Any, t_final: Any, grid: NDArray, n_events: int,

@@ -44,7 +44,7 @@ from .interrupt import propagate_until
 from .precision import as_fp, unit_roundoff
 from .progress import step_callback
 from .solution import DenseOutput, PointDense, TaylorDense, polynomial_values
-from .steppers import Advance, TaylorStepper, terminal_event
+from .steppers import Advance, TaylorStepper, angle_wrap, terminal_event
 from .terms import Clock, SegmentStart, Term
 
 #: Bound on ``|tau|`` of one segment; the segment ends by its ``u = 1`` event long before (``tau`` is about
@@ -135,7 +135,8 @@ class SundmanTime(Clock):
 
     def advance(self, ta: Any, segment: SegmentStart, y: NDArray, pars: NDArray, offset: int,
                 dense: bool) -> Advance:
-        return sundman_advance(ta, segment.t, y, segment.t_final, pars, dense, segment.fp_type, offset)
+        return sundman_advance(ta, segment.t, y, segment.t_final, pars, dense, segment.fp_type, offset,
+                               segment.family.family.periodic)
 
     def __getstate__(self) -> dict:
         """Pickle the factor only (the cached values are rebuilt)."""
@@ -193,7 +194,7 @@ class SundmanDense:
 
 
 def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool, fp_type: Any,
-                    span_index: int) -> Advance:
+                    span_index: int, periodic: Sequence[int] = ()) -> Advance:
     """Run the Sundman integrator ``ta`` of the chart from ``(t, y)`` (``t != t_final``) to ``t_final`` or its first
     switch event.
 
@@ -210,7 +211,8 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, de
     arithmetic, so ``t`` in the plain stepper has no such loss).  A restart, in the step callback, falls
     between steps, so it costs no step (heyoka reads state and parameters afresh at each step).  A factor
     that vanishes on the path would stop ``t``: a restart that finds the time unmoved ends the segment as
-    a failure instead of looping.
+    a failure instead of looping.  The same callback wraps the state's ``periodic`` components
+    (:func:`~manifold.steppers.angle_wrap`).
     """
     ta.state[:] = np.append(y, fp_type(0.0))
     ta.time = fp_type(0.0)
@@ -223,6 +225,7 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, de
     # views of the integrator's coefficients and state, which heyoka updates in place and never moves (every
     # precision): taken once, not per step (~0.5 us each a step)
     tc, live = ta.tc, ta.state
+    wrap, wraps = angle_wrap(live, periodic, fp_type), [0]
 
     def record(ta: Any) -> bool:
         origin, span = clock["origin"], clock["span"]
@@ -243,6 +246,8 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, de
             clock["origin"], clock["span"] = now, t_final - now
             live[-1] = fp_type(0.0)
             ta.pars[span_index] = 1 / clock["span"]
+        if wrap is not None:
+            wraps[0] += wrap()
         return True
 
     per_step = dense_bytes_per_step(ta) if dense else 0
@@ -276,7 +281,7 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, de
     else:
         out = PointDense(y_end) if dense else None
         times, states = np.array([t_end]), y_end[None, :]
-    return Advance(t_end, y_end, n_steps, event, times, states, out, failure)
+    return Advance(t_end, y_end, n_steps, event, times, states, out, failure, n_wraps=wraps[0])
 
 
 class SundmanStepper(TaylorStepper):

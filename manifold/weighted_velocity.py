@@ -183,7 +183,8 @@ class WeightedVelocity(StateTerm):
         k, adv = segment.family.family.dim, advance
         out = None if adv.dense is None else _UnweighedDense(adv.dense, self, R_inv, k)
         unweighed = Advance(adv.t, self._weigh(R_inv, adv.y[None, :], k)[0], adv.n_steps, adv.event,
-                            adv.step_times, self._weigh(R_inv, adv.step_states, k), out, adv.failure)
+                            adv.step_times, self._weigh(R_inv, adv.step_states, k), out, adv.failure,
+                            n_wraps=adv.n_wraps)
         return self.velocity.leave(unweighed, segment)
 
 

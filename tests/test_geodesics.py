@@ -10,7 +10,9 @@ from charts import SuspensionChart
 from linkage import Chain
 from linkage.ambient import integrate_ambient
 from linkage.motion import free_motion
+from linkage.time_factor import ChainTimeFactor
 from manifold import Precision, SaveAt, ScipyStepper, StartCheck, TaylorStepper, solve_chart_exp_ode
+from manifold.sundman import SundmanStepper
 
 HALF_PI = np.pi / 2
 
@@ -234,12 +236,25 @@ def test_backward_integration_switches_before_the_pole():
     assert np.abs(chain.from_point(sol.end_state()[0]) - ref.hinges[-1]).max() < 1e-9
 
 
-def test_backward_run_wraps_the_circle_angle():
+@pytest.mark.parametrize("stepper", [TaylorStepper(), SundmanStepper(ChainTimeFactor(Chain(3, 1.7)))])
+def test_backward_run_wraps_the_circle_angle(stepper):
+    """The circle angle, wrapped between steps: within one step's turn of ``[-pi, pi]`` at every step (the dense
+    output ends each step on its own polynomial), as many wraps as the angle turns through ``+-pi`` (the three-rod
+    chain's one chart: it turns one way for ever), and the hinge method's motion."""
     chain = Chain(3, 1.7)
-    sol = solve_chart_exp_ode(chain.metric(), [0.0], [-2.0], -30.0, chart=0, save=SaveAt(dense=False))
-    i, a, c = sol.final_state
-    assert -np.pi <= float(a[0]) <= np.pi
-    assert sol.relative_energy_error < 1e-13
+    T = -30.0
+    sol = solve_chart_exp_ode(chain.metric(), [0.0], [-2.0], T, chart=0, stepper=stepper)
+    assert len(sol.segments) == 1 and sol.relative_energy_error < 1e-13
+    steps = np.array([float(t) for t in sol.energy_times])
+    angle = sol.parameters(steps)[1][:, 0]
+    reach = np.abs(np.diff(np.unwrap(angle))).max()  # the largest turn in a step
+    assert reach < 0.2 and np.all(np.abs(angle) <= np.pi + reach)
+    turned = np.unwrap(sol.parameters(np.linspace(0, T, 20001))[1][:, 0])  # steps of at most 0.02 in the angle
+    assert np.all(np.diff(turned) > 0)
+    assert sol.stats.n_wraps == int(np.floor((turned[-1] + np.pi) / (2 * np.pi))) >= 5
+    p0, v0 = sol(0.0)
+    ref = free_motion(chain, chain.from_point(p0), chain.from_point(v0), T, method="hinges")
+    assert np.abs(chain.from_point(sol(T)[0]) - ref(T)[0]).max() < 1e-11
 
 
 def test_forced_start_chart_below_threshold_switches_at_once():
