@@ -265,7 +265,7 @@ def angle_wrap(state: Any, periodic: Sequence[int], fp_type: Any) -> Callable[[]
 
     heyoka reads the state afresh at each step, so a wrap between steps costs neither a step nor a segment
     (terminal events at ``+-pi`` ended a segment at each wrap, and with it the conversions, the parameter packing and
-    the grid's Newton solves around it: 8.3-11.4 ms against 6.3 ms for a T = 20 run at n = 4 with three wraps).
+    the grid's Newton solves around it: 8.7-9.0 ms against 7.4 ms of CPU for a T = 20 run at n = 4 with three wraps).
     The angle is at most one step's change past ``+-pi`` when it is wrapped; the chart map is periodic in it.
     ``x -+ 2 pi`` is exact for ``x`` in ``[pi, 4 pi]`` (Sterbenz): a wrap rounds only through the constant ``2 pi``.
     """
