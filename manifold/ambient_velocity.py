@@ -56,7 +56,7 @@ every segment, wrap and switch.
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from typing import Any
 
 import heyoka as hy
@@ -234,6 +234,20 @@ class ConstrainedVelocity(StateTerm):
         the ambient velocity anyway)."""
         k, N = segment.family.family.dim, segment.family.family.point_dim
         return np.concatenate([segment.y[:k], segment.start[N : 2 * N, 0]])
+
+    def rewrapped(self, segment: SegmentStart) -> Callable[[Any], None]:
+        """``V`` projected onto the tangent space at the wrapped point, ``V <- J c`` with ``c`` its tangent
+        coefficients there (:meth:`~manifold.compiled.Transfer.coefficients`), in the live state ``(a, V, ...)``:
+        the wrap's rounding of ``2 pi`` moved the point by 2.4e-16 (:func:`~manifold.steppers.angle_wrap`)."""
+        k, N, transfer = segment.family.family.dim, segment.family.family.point_dim, segment.transfer
+        zero = np.zeros((N, 1))
+
+        def project(state: Any) -> None:
+            a = np.array(state[:k])[:, None]
+            c = transfer.coefficients(a, np.array(state[k : k + N])[:, None])
+            state[k : k + N] = transfer(a, c, zero)[N : 2 * N, 0]
+
+        return project
 
     def leave(self, advance: Advance, segment: SegmentStart) -> Advance:
         """The integrated ``(a, V)`` read back as ``(a, c)`` (:func:`_chart_states`), dense output included."""

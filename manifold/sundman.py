@@ -28,7 +28,7 @@ method on the step's polynomial ``u(tau)``, monotone in ``tau``.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Hashable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from types import SimpleNamespace
 from typing import Any
 
@@ -44,7 +44,7 @@ from .interrupt import propagate_until
 from .precision import as_fp, unit_roundoff
 from .progress import step_callback
 from .solution import DenseOutput, PointDense, TaylorDense, polynomial_values
-from .steppers import Advance, TaylorStepper, angle_wrap, terminal_event
+from .steppers import Advance, TaylorStepper, terminal_event
 from .terms import Clock, SegmentStart, Term
 
 #: Bound on ``|tau|`` of one segment; the segment ends by its ``u = 1`` event long before (``tau`` is about
@@ -134,9 +134,8 @@ class SundmanTime(Clock):
         return np.concatenate([as_fp([1.0], fp) / (segment.t_final - segment.t), self._kappa[fp]])
 
     def advance(self, ta: Any, segment: SegmentStart, y: NDArray, pars: NDArray, offset: int,
-                dense: bool) -> Advance:
-        return sundman_advance(ta, segment.t, y, segment.t_final, pars, dense, segment.fp_type, offset,
-                               segment.family.family.periodic)
+                dense: bool, wrap: Callable[[], int] | None = None) -> Advance:
+        return sundman_advance(ta, segment.t, y, segment.t_final, pars, dense, segment.fp_type, offset, wrap)
 
     def __getstate__(self) -> dict:
         """Pickle the factor only (the cached values are rebuilt)."""
@@ -194,7 +193,7 @@ class SundmanDense:
 
 
 def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, dense: bool, fp_type: Any,
-                    span_index: int, periodic: Sequence[int] = ()) -> Advance:
+                    span_index: int, wrap: Callable[[], int] | None = None) -> Advance:
     """Run the Sundman integrator ``ta`` of the chart from ``(t, y)`` (``t != t_final``) to ``t_final`` or its first
     switch event.
 
@@ -211,8 +210,7 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, de
     arithmetic, so ``t`` in the plain stepper has no such loss).  A restart, in the step callback, falls
     between steps, so it costs no step (heyoka reads state and parameters afresh at each step).  A factor
     that vanishes on the path would stop ``t``: a restart that finds the time unmoved ends the segment as
-    a failure instead of looping.  The same callback wraps the state's ``periodic`` components
-    (:func:`~manifold.steppers.angle_wrap`).
+    a failure instead of looping.  The same callback runs ``wrap`` (:func:`~manifold.steppers.angle_wrap`).
     """
     ta.state[:] = np.append(y, fp_type(0.0))
     ta.time = fp_type(0.0)
@@ -225,7 +223,7 @@ def sundman_advance(ta: Any, t: Any, y: NDArray, t_final: Any, pars: NDArray, de
     # views of the integrator's coefficients and state, which heyoka updates in place and never moves (every
     # precision): taken once, not per step (~0.5 us each a step)
     tc, live = ta.tc, ta.state
-    wrap, wraps = angle_wrap(live, periodic, fp_type), [0]
+    wraps = [0]
 
     def record(ta: Any) -> bool:
         origin, span = clock["origin"], clock["span"]

@@ -37,7 +37,7 @@ term is a subclass in its own file, passed to
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
@@ -190,16 +190,24 @@ class StateTerm(Term):
         read back in the loop's ``(a, c)`` (states, end and dense output; default: unchanged)."""
         return advance
 
+    def rewrapped(self, segment: SegmentStart) -> Callable[[Any], None] | None:
+        """What its state needs after a periodic parameter was wrapped by ``2 pi`` between steps
+        (:func:`~manifold.steppers.angle_wrap`): a function of the integrator's live state, or ``None`` (default:
+        nothing; chart coefficients ``c`` are the same at ``a`` and ``a -+ 2 pi``)."""
+        return None
+
 
 class Clock(Term):
     """A term that changes the independent variable (Sundman's time): it runs the integrator over a segment."""
 
     @abstractmethod
     def advance(self, ta: Any, segment: SegmentStart, y: NDArray, pars: NDArray, offset: int,
-                dense: bool) -> Advance:
+                dense: bool, wrap: Callable[[], int] | None = None) -> Advance:
         """Run heyoka's integrator ``ta`` (its parameters ``pars``, this term's at ``pars[offset ..]``) from the
         integrated state ``y`` at ``segment.t`` to ``segment.t_final`` or the first event, in physical times: an
-        :class:`~manifold.steppers.Advance` whose ``event`` indexes the composed events."""
+        :class:`~manifold.steppers.Advance` whose ``event`` indexes the composed events.  ``wrap``
+        (:func:`~manifold.steppers.angle_wrap`) runs between every two steps; it returns the wraps it made, whose sum
+        is :attr:`Advance.n_wraps`."""
 
 
 class ChartGeodesic(StateTerm):

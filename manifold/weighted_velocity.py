@@ -30,7 +30,7 @@ The term is a :class:`~manifold.terms.StateTerm`: its switch map converts ``(a, 
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from typing import Any
 
 import heyoka as hy
@@ -175,6 +175,19 @@ class WeightedVelocity(StateTerm):
         """``(a, w)`` with ``w = (R (x) I_b) J c`` at the segment's start."""
         R, _ = self.factors(segment)
         return self._weigh(R, self.velocity.enter(segment)[None, :], segment.family.family.dim)[0]
+
+    def rewrapped(self, segment: SegmentStart) -> Callable[[Any], None]:
+        """``w = (R (x) I_b) V`` with ``V`` projected as :meth:`ConstrainedVelocity.rewrapped
+        <manifold.ambient_velocity.ConstrainedVelocity.rewrapped>` projects it, in the live state ``(a, w, ...)``."""
+        R, R_inv = self.factors(segment)
+        k, N, project = segment.family.family.dim, self.size * self.block, self.velocity.rewrapped(segment)
+
+        def reweigh(state: Any) -> None:
+            av = self._weigh(R_inv, np.array(state[: k + N])[None, :], k)[0]
+            project(av)
+            state[k : k + N] = self._weigh(R, av[None, :], k)[0, k:]
+
+        return reweigh
 
     def leave(self, advance: Advance, segment: SegmentStart) -> Advance:
         """The integrated ``(a, w)`` read back as ``(a, V)``, then as ``(a, c)`` by the ``(a, V)`` term's

@@ -27,6 +27,7 @@ from manifold.constrained import damping_rate, speed_scale
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper
 from manifold.terms import SegmentStart
+from manifold.weighted_velocity import WeightedVelocity
 
 from .conftest import assert_same_motion, atlas_start, unit_speed_start
 
@@ -324,3 +325,52 @@ def test_both_velocity_solves_give_the_same_motion(chain, seed):
     assert_same_motion(got["recursion"], got["jets"], 20.0)
     # two computations, not one: they round differently
     assert not np.array_equal(got["recursion"].end_state()[1], got["jets"].end_state()[1])
+
+
+def _rod_rates(z: np.ndarray, V: np.ndarray, L: float) -> np.ndarray:
+    """``e_k . (v_k - v_{k-1})`` of the rods of a chain pinned at 0 and ``L`` (hinges ``z``, velocities ``V`` in the
+    chart's frame, interleaved): 0 for a velocity tangent to its configuration space."""
+    p = np.concatenate([[0.0, 0.0], z, [L, 0.0]]).reshape(-1, 2)
+    v = np.concatenate([[0.0, 0.0], V, [0.0, 0.0]]).reshape(-1, 2)
+    return np.sum(np.diff(p, axis=0) * np.diff(v, axis=0), axis=1)
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_a_wrap_between_steps_puts_the_ambient_velocity_back_on_the_tangent_space(weighted, monkeypatch):
+    """A wrap rounds ``2 pi`` and so moves the point along ``t`` (by 2.4e-16; here by 1e-7, to see it): the state term
+    projects ``V`` (or ``w = R V``) onto the tangent space at the moved point, where the old one leaves it by about
+    the move, keeping the energy to second order; a solve calls it once per wrap (``manifold.steppers.angle_wrap``:
+    left off, the energy drifted one way, -1.2e-12 over T = 1.2e5)."""
+    chain = Chain(4, 2.7, hinge_masses=[1.0, 0.4, 2.0])
+    atlas = chain.atlas()
+    chart = atlas.charts[0]
+    numerics = chart.numerics(chain.ambient_metric, atlas.switch_threshold, float)
+    family = compiled(chart.family)
+    segment = SegmentStart(family, float, 0.0, np.array([0.4, 2.9, 0.3, 1.2]), 1.0, numerics.pars)
+    system = ChainSystem(chain)
+    term = WeightedVelocity(system, block=2) if weighted else ConstrainedVelocity(system)
+    R, R_inv = term.factors(segment) if weighted else (np.eye(3), np.eye(3))
+    state = term.enter(segment).copy()
+    state[1] += 1e-7  # the circle angle, moved as a wrap's rounding moves it
+
+    def velocity(s: np.ndarray) -> np.ndarray:
+        return (R_inv @ s[2:].reshape(3, 2)).reshape(6)
+
+    z = family.evaluate_point(numerics.pars[: family.family.n_params], state[:2])
+    before = velocity(state)
+    term.rewrapped(segment)(state)
+    after = velocity(state)
+    assert np.abs(_rod_rates(z, before, 2.7)).max() >= 1e-8
+    assert np.abs(_rod_rates(z, after, 2.7)).max() <= 1e-15
+    K = np.kron(np.diag([1.0, 0.4, 2.0]), np.eye(2))
+    assert abs(after @ K @ after / (before @ K @ before) - 1) <= 1e-13
+    calls = []
+    plain = ConstrainedVelocity.rewrapped
+
+    def counted(self, segment):
+        project = plain(self, segment)
+        return lambda live: (calls.append(1), project(live))
+
+    monkeypatch.setattr(ConstrainedVelocity, "rewrapped", counted)
+    sol = free_motion(chain, *unit_speed_start(chain, [0.4, 2.9], [0.3, 1.2]), 20.0, method="charts").solution
+    assert sol.stats.n_wraps >= 2 and len(calls) == sol.stats.n_wraps
