@@ -197,8 +197,9 @@ class CompiledFamily(ArtefactStore):
         and ``pars`` (:attr:`ChartNumerics.pars`, then each term's parameters) before each use.
         ``tol=None`` is :func:`default_tolerance` (1e-14 in float64, the
         machine epsilon of other types).  ``terms`` (:mod:`manifold.terms`) compose the equations
-        (:meth:`composition`), with the switch events of ``switches`` only if given.  ``backward=True`` mirrors the
-        event directions for negative times.
+        (:meth:`composition`), with the switch events of ``switches`` only if given; no wrap events: a caller that
+        runs it past ``+-pi`` in a periodic parameter wraps it between steps (:func:`manifold.steppers.angle_wrap`).
+        ``backward=True`` mirrors the event directions for negative times.
         ``compact_mode`` and ``opt_level`` (LLVM's optimisation level, 0..3) are heyoka's compile options; each
         combination is a separate integrator.
         """

@@ -38,7 +38,8 @@ class ChartFamily(ABC):
         Number of family parameters ``theta``.
     periodic
         Indices of ``2 pi``-periodic parameters.  The steppers wrap them into
-        ``[-pi, pi]`` (heyoka's between steps, :func:`manifold.steppers.angle_wrap`): heyoka's error control is
+        ``[-pi, pi]`` (heyoka's between steps, :func:`manifold.steppers.angle_wrap`, so that within a step, and in
+        the dense output there, the angle can be one step's turn past ``+-pi``): heyoka's error control is
         relative to the state's size, so an angle left to grow to ``O(1000)`` would cost three digits.
     """
 

@@ -170,7 +170,7 @@ def solve_chart_exp_ode(
     energy_tol = stepper.relative_tolerance(fp_type)
     family = compiled(atlas.charts[0].family)
     switches = needed_switches(atlas, q_event)
-    events = stepper.events(family, fp_type, form, switches)  # what each index means: switch, wrap, stop
+    events = stepper.events(family, fp_type, form, switches)  # what each index means: switch, stop (wrap: dense steppers)
     two_pi = 8 * np.arctan(as_fp(1.0, fp_type))  # 2 pi exact to fp_type
     backward = t_end < 0
     sign = -1.0 if backward else 1.0

@@ -11,7 +11,7 @@ A ``progress`` argument (:func:`manifold.solve_chart_exp_ode`,
 * a callable ``f(update)`` taking a :class:`ProgressUpdate`.
 
 A solve reports the time reached ``t`` of ``t_final`` after every segment (a
-chart switch or an angle wrap ends one), between them at most every
+chart switch ends one), between them at most every
 :data:`STEP_INTERVAL` seconds (from heyoka's per-step callback, which reads
 the integrator and changes nothing), and once when it ends.
 Compiles report when they start, saying what they compile and where heyoka

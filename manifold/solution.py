@@ -265,7 +265,7 @@ class GeodesicSolution:
         :class:`Segment` s in integration order and the :class:`ChartSwitch` log.
     energy_times, energies
         Kinetic energy ``1/2 c^T g c`` at every step (``dense=True``) or at
-        every segment end (switches, angle wraps, ``t_final``).
+        every segment end (switches, ``t_final``; angle wraps too with a stepper that locates them as events).
     t_eval, points, velocities
         The requested output grid and the points and embedded velocities on it
         (``None`` without ``t_eval``), in ``fp_type``.

@@ -111,13 +111,14 @@ class Stepper(ABC):
 
     def events(self, family: CompiledFamily, fp_type: Any, form: str,
                switches: tuple[int, ...] | None = None) -> list[Event]:
-        """The terminal events that its :attr:`Advance.event` indexes (default: all of the family's,
-        :func:`~manifold.events.chart_events`); the atlas loop acts on each by its kind.
+        """The terminal events that its :attr:`Advance.event` indexes (default: the family's switch events, those of
+        its compiled integrators, :meth:`~manifold.compiled.CompiledFamily.composition`: a stepper that runs them
+        wraps the periodic parameters between steps, :func:`angle_wrap`); the atlas loop acts on each by its kind.
 
         ``switches`` names the qualities whose switch events the solve needs (``None``: all); the others can never
         fire (:meth:`~manifold.family.ChartFamily.quality_floors`), and a stepper may leave them out.
         """
-        return family.events()
+        return family.events(wraps=False)
 
     def moves_at_rest(self, form: str) -> bool:
         """Whether anything it integrates changes while the geodesic stays at its start (default: no; then the loop
@@ -268,7 +269,8 @@ def angle_wrap(state: Any, periodic: Sequence[int], fp_type: Any,
     heyoka reads the state afresh at each step, so a wrap between steps costs neither a step nor a segment
     (terminal events at ``+-pi`` ended a segment at each wrap, and with it the conversions, the parameter packing and
     the grid's Newton solves around it: 8.7-9.0 ms against 7.4 ms of CPU for a T = 20 run at n = 4 with three wraps).
-    The angle is at most one step's change past ``+-pi`` when it is wrapped; the chart map is periodic in it.
+    The angle is at most one step's change past ``+-pi`` when it is wrapped (a start outside the range: after the
+    first step); the chart map is periodic in it, and the dense output may read such a value inside a step.
     ``x -+ 2 pi`` is exact for ``x`` in ``[pi, 4 pi]`` (Sterbenz): a wrap rounds only through the constant ``2 pi``.
 
     Numerical trap: that rounding moves the point by 2.4e-16 in ``t``, forward along the motion at every wrap.  An
@@ -453,6 +455,11 @@ class DenseStepper(Stepper):
         ``t_final`` and yields each accepted :class:`Step`, ending at
         ``t_final``; it raises :class:`StepperFailure` where it breaks down.
         """
+
+    def events(self, family: CompiledFamily, fp_type: Any, form: str,
+               switches: tuple[int, ...] | None = None) -> list[Event]:
+        """All of the family's events, the wraps included: the locator ends a segment at each wrap."""
+        return family.events()
 
     @contextmanager
     def session(self, family: CompiledFamily, fp_type: Any, *, form: str, backward: bool,

@@ -13,8 +13,8 @@ empty system.  Each term declares
   chart's own (:attr:`~manifold.geodesic_system.Layout.terms_index`), and their
   values at each segment's start (:meth:`Term.parameter_values` of a
   :class:`SegmentStart`), which the stepper asks of every term of its composition;
-* its **events** (:meth:`Term.events`), after the family's switch and wrap
-  events (:mod:`manifold.events`); the atlas loop acts on each by its kind
+* its **events** (:meth:`Term.events`), after the family's switch events (:mod:`manifold.events`; heyoka's
+  integrators have no wrap events: :func:`~manifold.steppers.angle_wrap`); the atlas loop acts on each by its kind
   (a :data:`~manifold.events.STOP` ends the solve);
 * its **switch map**: how the atlas loop's state ``(a, c)`` maps to the term's
   state at each segment's start (:meth:`StateTerm.enter`) and back at its end
