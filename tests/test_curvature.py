@@ -14,7 +14,7 @@ from __future__ import annotations
 import heyoka as hy
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from charts import SuspensionChart
@@ -246,12 +246,14 @@ def test_second_fundamental_form_of_the_round_sphere(seed, radius):
 
 
 @given(L=base_lengths(5), seed=st.integers(0, 2**32 - 1), density=st.sampled_from([0.0, 0.6]))
+@example(L=4.999999611612582, seed=15303, density=0.0)  # CI's draw: |II|^2 off by 10.5 eps / gap, II by about half
 @settings(max_examples=25)
 def test_second_fundamental_form_of_a_chain_is_the_constraints_normal_acceleration(L, seed, density):
     """The charts' route (second derivatives of the suspension chart, best chart) against the constraints' route
     (no chart): II(u, w) = -K^-1 G^T (G K^-1 G^T)^-1 (u^T nabla^2 c w), and so II(v, v) is the geodesic's
     acceleration, |II|^2 the sum over a K-orthonormal basis (linkage.geometry.tangent_basis).  Both routes lose
-    about eps / gap, the gap of L to the nearer end of its range (measured 1.3e-9 relative at a gap of 1e-7)."""
+    about eps / gap, the gap of L to the nearer end of its range (measured 1.3e-9 relative at a gap of 1e-7);
+    |II|^2, a sum of squares, twice that relative to itself."""
     from linkage.constraints import HingeConstraints
     from linkage.geometry import tangent_basis
 
@@ -274,7 +276,7 @@ def test_second_fundamental_form_of_a_chain_is_the_constraints_normal_accelerati
     assert np.abs(metric.second_fundamental_form(x, w, w) - hc.acceleration(x, w)).max() <= rtol * scale
     K = chain.ambient_metric
     bending = sum(constraint_form(a, b) @ K @ constraint_form(a, b) for a in E for b in E)
-    assert abs(metric.bending(x) - bending) <= rtol * bending
+    assert abs(metric.bending(x) - bending) <= 2 * rtol * bending  # a square doubles the relative error
     assert abs(metric.stiffness(x, w) - np.sqrt(constraint_form(w, w) @ K @ constraint_form(w, w))) <= rtol * scale
 
 
