@@ -33,7 +33,7 @@ from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible, set
 from .metric import InducedMetric
 from .options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, Precision, SaveAt, StartCheck, check_group,
                       takes_option_groups)
-from .precision import as_fp, unit_roundoff
+from .precision import as_fp, two_pi, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import ChartSwitch, GeodesicIntegrationError, GeodesicSolution, PointDense, Segment, SolverStats, SolveStatus
 from .steppers import Stepper, TaylorStepper
@@ -171,7 +171,7 @@ def solve_chart_exp_ode(
     family = compiled(atlas.charts[0].family)
     switches = needed_switches(atlas, q_event)
     events = stepper.events(family, fp_type, form, switches)  # what each index means: switch, stop (wrap: dense steppers)
-    two_pi = 8 * np.arctan(as_fp(1.0, fp_type))  # 2 pi exact to fp_type
+    turn = two_pi(fp_type)
     backward = t_end < 0
     sign = -1.0 if backward else 1.0
     n_wraps, n_grid, status, message = 0, 0, SolveStatus.SUCCESS, ""
@@ -227,7 +227,7 @@ def solve_chart_exp_ode(
                     message = f"stopped at t = {t} by a stop event (chart {atlas.ids[i]})"
                 break
             if event.kind == WRAP:  # a dense stepper's periodic parameter left [-pi, pi]: wrap it, same chart
-                a[event.parameter] += two_pi if event.shift > 0 else -two_pi
+                a[event.parameter] += turn if event.shift > 0 else -turn
                 n_wraps += 1
                 continue
             if len(sol.switches) >= max_switches:

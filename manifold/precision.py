@@ -10,6 +10,8 @@ multiprecision arrays are built element by element at exactly ``bits``.
 
 from __future__ import annotations
 
+from typing import Any
+
 import heyoka as hy
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -115,6 +117,12 @@ def unit_roundoff(fp_type) -> float:
     raise TypeError(
         f"fp_type must be float, numpy.longdouble, heyoka.real128 or MultiPrecision(bits), got {fp_type!r}"
     )
+
+
+def two_pi(fp_type) -> Any:
+    """``2 pi`` rounded once to ``fp_type`` (``8 atan(1)`` in it): the shift of every wrap of a periodic parameter,
+    so that the stepper's wraps between steps and the loop's at events round alike."""
+    return 8 * np.arctan(as_fp(1.0, fp_type))
 
 
 def is_double(fp_type) -> bool:

@@ -42,7 +42,7 @@ from .budget import allowance, dense_bytes_per_step, spend
 from .compiled import DEFAULT_OPT_LEVEL, CompiledFamily
 from .events import Event, first_crossing
 from .interrupt import propagate_grid, propagate_until
-from .precision import as_fp, is_double, unit_roundoff
+from .precision import is_double, two_pi, unit_roundoff
 from .progress import step_callback
 from .solution import CallableDense, DenseOutput, PointDense, SecondOrderDense, TaylorDense
 from .terms import ChartGeodesic, Clock, SegmentStart, StateTerm, Term
@@ -283,17 +283,17 @@ def angle_wrap(state: Any, periodic: Sequence[int], fp_type: Any,
     """
     if not periodic:
         return None
-    two_pi = 8 * np.arctan(as_fp(1.0, fp_type))  # 2 pi exact to fp_type
-    pi = two_pi / 2
+    turn = two_pi(fp_type)
+    pi = turn / 2
 
     def wrap() -> int:
         moved = 0
         for p in periodic:
             x = state[p]
             if x > pi:
-                state[p], moved = x - two_pi, moved + 1
+                state[p], moved = x - turn, moved + 1
             elif x < -pi:
-                state[p], moved = x + two_pi, moved + 1
+                state[p], moved = x + turn, moved + 1
         if moved and after is not None:
             after(state)
         return moved
