@@ -65,6 +65,9 @@ class ConfigurationError(ValueError):
 #: methods'); a tiny density beside the hinge masses is harmless.  Scaling every mass by one factor changes no
 #: geodesic, so a model can always be brought into it.
 MASS_RANGE = (1e-100, 1e100)
+#: A start must close to this, relative to each rod (:meth:`Chain.check_configuration`), or to what float64 rounding
+#: allows where that is larger; every solver of the chain takes what this check takes.
+START_CLOSURE_TOLERANCE = 1e-9
 
 
 def _read_only(a: NDArray) -> NDArray:
@@ -395,9 +398,9 @@ class Chain:
         return h
 
     def check_one_configuration(self, hinges: ArrayLike, name: str, hint: str = "") -> NDArray:
-        """:meth:`check_configuration` (to 1e-9) of one configuration: ``ValueError`` naming ``name`` for any other
+        """:meth:`check_configuration` (to :data:`START_CLOSURE_TOLERANCE`) of one configuration: ``ValueError`` naming ``name`` for any other
         shape than ``(n-1,)`` (``hint`` appended to the message)."""
-        h = self.check_configuration(hinges, tol=1e-9)
+        h = self.check_configuration(hinges, tol=START_CLOSURE_TOLERANCE)
         if h.shape != (self.n - 1,):
             raise ValueError(f"{name} must be one configuration, shape (n - 1,) = ({self.n - 1},), got {h.shape}{hint}")
         return h

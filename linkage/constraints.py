@@ -45,14 +45,14 @@ from numpy.typing import ArrayLike, NDArray
 
 import heyoka as hy
 
-from charts.chain_geometry import to_real
+from charts.chain_geometry import closure_tolerances, to_real
 from manifold.backends import Cx
-from manifold.constrained import ConstrainedSystem
+from manifold.constrained import ROUNDING_RESIDUAL, ConstrainedSystem
 from manifold.options import StartCheck, check_group
 from manifold.validation import check_real
 
 from . import rods
-from .chain import Chain
+from .chain import START_CLOSURE_TOLERANCE, Chain
 
 __all__ = ["ChainSystem", "chain_system", "HingeConstraints", "HingeStart", "start_state", "start_states"]
 
@@ -491,6 +491,17 @@ class ChainSystem(ConstrainedSystem):
         floor for rods of comparable lengths up to ``R = 4``, a short link's own.  Near full stretch, where the hinges'
         coordinates approach ``R``, a start of five unit rods rounded from an exact one had ``|c_k| = 17 u``."""
         return 4 * self.chain.rounding_floors / (np.finfo(float).eps / 2)
+
+    @property
+    def start_tolerances(self) -> NDArray:
+        """``|c_k|`` of a rod whose length is off by the relative error the chain's start check accepts (``t_k``:
+        :data:`linkage.chain.START_CLOSURE_TOLERANCE`, or more for a short link,
+        :func:`charts.chain_geometry.closure_tolerances`): ``c_k = (1 + d)^2 - 1`` with ``|d| <= t_k`` is at most
+        ``t_k (2 + t_k)``, and rounding ``c_k`` adds up to :attr:`rounding_scales` unit roundoffs.  So the solver
+        takes every start that :meth:`Chain.check_configuration` takes (with the generic bound on ``c_k``
+        itself, a rod 0.6e-9 too long was refused)."""
+        t = closure_tolerances(self.chain.lengths, START_CLOSURE_TOLERANCE)
+        return t * (2 + t) + np.maximum(ROUNDING_RESIDUAL, self.rounding_scales) * (np.finfo(float).eps / 2)
 
     @property
     def metric_matrix(self) -> NDArray:

@@ -145,6 +145,18 @@ class ConstrainedSystem(ABC):
         return np.ones(self.n_constraints)
 
     @property
+    def start_tolerances(self) -> NDArray:
+        """Per constraint, the largest ``|c_k(x0)|`` a float64 start may have, shape ``(m,)``: by default
+        :data:`START_CONSTRAINT_TOLERANCE`, or :data:`START_ROUNDING_MARGIN` times the constraint's rounding floor
+        (:attr:`rounding_scales` unit roundoffs of float64, at least :data:`ROUNDING_RESIDUAL`) where that is larger.
+
+        A system whose users check their starts in another measure (a chain's relative rod lengths) overrides it
+        with that check's bound on ``c``, so that the solver takes every start the system's own check takes.
+        """
+        scales = np.maximum(ROUNDING_RESIDUAL, np.asarray(self.rounding_scales, dtype=float))
+        return np.maximum(START_CONSTRAINT_TOLERANCE, START_ROUNDING_MARGIN * scales * unit_roundoff(float))
+
+    @property
     @abstractmethod
     def metric_matrix(self) -> NDArray:
         """The constant ambient metric ``K``, ``(N, N)`` symmetric positive definite (float64 entries, taken exact)."""
@@ -629,8 +641,11 @@ class ConstrainedGeometry:
         #: each constraint's floor over the common one (ROUNDING_RESIDUAL unit roundoffs), >= 1: drift is judged by it
         self.weights = scales / ROUNDING_RESIDUAL
         self.floors = scales * self.eps
-        self.start_tolerances = np.maximum(START_CONSTRAINT_TOLERANCE,
-                                           START_ROUNDING_MARGIN * scales * unit_roundoff(float))
+        self.start_tolerances = np.asarray(system.start_tolerances, dtype=float)
+        if self.start_tolerances.shape != (self.m,) or not np.all(self.start_tolerances > 0) \
+                or not np.all(np.isfinite(self.start_tolerances)):
+            raise ValueError(f"{system!r}.start_tolerances must be {self.m} finite numbers > 0, "
+                             f"got {self.start_tolerances!r}")
         self.system, self._compiled = system, comp
         self._one_column = np.ascontiguousarray(self.pars[:, None])  # the parameters of a single row
         # numpy's dtype of fp_type (None for multiprecision, whose numbers as_fp rebuilds at exactly its bits)
@@ -751,8 +766,7 @@ class ConstrainedGeometry:
         and ``v0`` K-orthogonally onto ``ker G`` (:meth:`project`), the kinetic
         energy there, and the Baumgarte rate ``alpha = sign(t_final) rate
         sqrt(2 E0 tr(K^-1)) / (N length_scale)`` (:attr:`ConstrainedSystem.length_scale`).
-        Raises ``ValueError`` if some ``|c_k(x0)|`` exceeds its :attr:`start_tolerances` (:data:`START_CONSTRAINT_TOLERANCE`,
-        or :data:`START_ROUNDING_MARGIN` times the constraint's float64 rounding floor where that is larger) or an
+        Raises ``ValueError`` if some ``|c_k(x0)|`` exceeds its bound (:attr:`ConstrainedSystem.start_tolerances`) or an
         energy is not finite, naming the row as ``x0[first_index + k]`` (``x0`` alone if ``first_index`` is ``None``).
         """
         def name(k: int) -> str:
@@ -893,8 +907,8 @@ def solve_constrained(
     system
         The :class:`ConstrainedSystem`.
     x0, v0
-        Start point (``max_k |c_k(x0)| <= 1e-9``, or within 100 times a constraint's float64 rounding floor
-        where that is larger: :attr:`ConstrainedSystem.rounding_scales`; else ``ValueError``) and
+        Start point (each ``|c_k(x0)|`` within :attr:`ConstrainedSystem.start_tolerances`: by default ``1e-9``, or
+        100 times the constraint's float64 rounding floor where that is larger; else ``ValueError``) and
         velocity (shape ``(N,)``).  Both are completed to the working precision:
         ``x0`` projected onto ``c = 0``, ``v0`` K-orthogonally onto ``ker G``
         (so a float64 start is an exact start for a quad-precision run).

@@ -15,10 +15,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from charts.chain_geometry import closure_tolerances
 from linkage import Chain
 from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.motion import free_motion
-from manifold import Precision, SaveAt, SolveStatus
+from manifold import Precision, SaveAt, SolveStatus, StartCheck
 from manifold.constrained import ConstrainedGeometry, ConstrainedSystem, compiled_constrained, solve_constrained
 from manifold.expression_linalg import ldl_solve
 from manifold.precision import MultiPrecision, as_fp
@@ -408,3 +409,69 @@ def test_bad_options_are_refused():
         solve_constrained(system, x0[:4], w0, 1.0)
     with pytest.raises(ValueError, match="t_eval"):
         solve_constrained(system, x0, w0, 1.0, save=SaveAt(t_eval=[0.5, 2.0]))
+
+
+def _stretched_rod(chain: Chain, h0: np.ndarray, k: int, excess: float) -> np.ndarray:
+    """``h0`` with rod ``k`` (``k < n - 1``) lengthened along itself, the hinges after it moved with it, so that the
+    chain's closure excess (:meth:`Chain.closure_excess`, 1 at its tolerance) is ``excess`` to a few parts in 1e6
+    (the last rod takes up the move, and may be the one that sets the excess)."""
+    e = chain.rods(h0)[k]
+
+    def moved(f: float) -> np.ndarray:
+        h = h0.copy()
+        h[k:] += f * e
+        return h
+
+    f = closure_tolerances(chain.lengths, 1e-9)[k]  # a first move of the size of rod k's tolerance
+    for _ in range(3):  # the excess is linear in f to ~f: the secant lands on the target
+        f *= excess / float(chain.closure_excess(moved(f)))
+    return moved(f)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(3, 6), st.booleans(),
+       st.sampled_from([0.5, 0.9, 0.999, 1.1, 1.5]))
+def test_the_solver_takes_every_start_the_chains_check_takes(seed, n, short_link, excess):
+    """The hinge solver's start check on ``c_k = |e_k|^2 / l_k^2 - 1`` (:attr:`ChainSystem.start_tolerances`) takes
+    exactly the starts the chain's own check on relative rod lengths takes: a rod off by up to its tolerance
+    (0.999 of it) passes both, one off by 1.1 of it fails both.  With the generic bound ``|c_k| <= 1e-9`` a rod
+    0.6e-9 too long, which the chain accepts, was refused; a short link's tolerance is its rounding floor's."""
+    rng = np.random.default_rng(seed)
+    lengths = rng.uniform(0.5, 1.5, n)
+    if short_link:
+        lengths[rng.integers(n - 1)] = 10.0 ** -rng.uniform(3, 8)
+    low = max(0.0, 2 * lengths.max() - lengths.sum())  # L from low to the sum closes (a polygon's sides)
+    chain = Chain(lengths, low + rng.uniform(0.1, 0.9) * (lengths.sum() - low))
+    h0 = chain.diagonal_space().sample(1, rng).hinges[0]
+    k = int(np.argmin(lengths[:-1])) if short_link else int(rng.integers(n - 1))
+    h = _stretched_rod(chain, h0, k, excess)
+    geo = ConstrainedGeometry.of(ChainSystem(chain), float)
+    x = chain.to_point(h)[None, :]
+    v = np.zeros_like(x)
+    actual = float(chain.closure_excess(h))
+    assert abs(actual / excess - 1) < 0.05  # a short link's length moves in steps of eps |h| / l_k: up to 1 %
+    if actual <= 1:
+        chain.check_configuration(h)
+        geo.start(x, v, 1.0, 1.0)
+    else:
+        with pytest.raises(ValueError, match="does not close"):
+            chain.check_configuration(h)
+        if actual >= 1.05:  # just above 1 the solver may still take it: c_k's own rounding is allowed on top
+            with pytest.raises(ValueError, match="not on the constraint manifold"):
+                geo.start(x, v, 1.0, 1.0)
+
+
+def test_a_start_the_chain_takes_runs_with_every_method():
+    """A rod 0.8e-9 too long (relative): within the chain's tolerance, so the hinges, one start of an ensemble and
+    the charts all integrate it (the hinges and the ensemble refused it before their bound on ``c`` matched)."""
+    from linkage.ensemble import free_motions
+    from linkage.sampling import sample_starts
+
+    chain = Chain(4, 2.6)
+    H, V = sample_starts(chain, 1, 0.5, np.random.default_rng(0))
+    h = H[0] * (1 + 0.8e-9)
+    assert 0.75e-9 < chain.closure_residual(h) < 0.85e-9
+    start = StartCheck(project_velocity=True)  # the scaled hinges' velocity is no longer tangent to 1e-9
+    for method in ("hinges", "charts"):
+        assert free_motion(chain, h, V[0], 1.0, method=method, start=start).success
+    assert free_motions(chain, h[None], V[:1], 1.0, start=start).success.all()
