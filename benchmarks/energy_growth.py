@@ -5,7 +5,7 @@ Run ``python -m benchmarks.energy_growth [--quick] [--long]``.  Prints:
 1. **Unequal masses.**  Relative energy error over T = 20 of both methods for
    hinge masses equal, spread over 1e-3..1e2 and spread the other way (n = 4
    and 6, four generic unit-speed starts each), with the wall time of the
-   four runs.  The hinge method is also run in long double; the chart method
+   four runs; the charts also with the conserving equations (``charts:conserving`` below).  The hinge method is also run in long double; the chart method
    at the float64 machine epsilon as tolerance, in float64 and in long double:
    if long double at the *same* tolerance errs as much, the error is the
    integrator's truncation (its error control), not rounding.
@@ -25,7 +25,8 @@ Run ``python -m benchmarks.energy_growth [--quick] [--long]``.  Prints:
    part switched off: ``charts:t`` (in ``t``), ``charts:ac`` (the state
    ``(a, c)``), ``charts:undamped`` (damping rate 0), ``charts:jets`` (``a'`` read from ``V`` on the jets, not
    by the charts' level recursion), the chart path with the mass-weighted state ``(a, R J c)``,
-   ``charts:weighted`` (:mod:`manifold.weighted_velocity`); and ``charts:longdouble``
+   ``charts:weighted`` (:mod:`manifold.weighted_velocity`), the conserving equations ``charts:conserving``
+   (``ConstrainedVelocity(..., conserving=True)``); and ``charts:longdouble``
    (the default chart path in long double: at the same tolerance the same
    truncation, 2^-11 of the rounding).
 3. **Where the chart path's energy changes** (n = 4, L = 2.5, ``--T3``, default
@@ -99,6 +100,7 @@ def unequal_masses(ns: list[int], count: int, T: float = 20.0) -> None:
             rows = {"hinges": {"method": "hinges"},
                     "hinges, long double": {"method": "hinges", "precision": Precision(np.longdouble)},
                     "charts": {"method": "charts"},
+                    "charts, conserving": _options(chain, "charts:conserving", None),
                     "charts, tol eps": {"method": "charts", "precision": Precision(tol=EPS)},
                     "charts, tol eps, long double": {"method": "charts", "precision": Precision(np.longdouble, EPS)}}
             for name, kw in rows.items():
@@ -124,7 +126,8 @@ def _options(chain: Chain, method: str, tol: float | None) -> dict:
     else:
         velocity = None if method == "charts:ac" else ConstrainedVelocity(
             ChainSystem(chain), **({"rate": 0.0} if method == "charts:undamped" else
-                                   {"solve": "jets"} if method == "charts:jets" else {}))
+                                   {"solve": "jets"} if method == "charts:jets" else
+                                   {"conserving": True} if method == "charts:conserving" else {}))
     stepper = (TaylorStepper(tol=tol, velocity=velocity) if method == "charts:t"
                else SundmanStepper(ChainTimeFactor(chain), tol=tol, velocity=velocity))
     return {"method": "charts", "stepper": stepper}

@@ -73,7 +73,7 @@ from .precision import as_fp
 from .solution import DenseOutput
 from .steppers import Advance
 from .terms import SegmentStart, StateTerm, Term
-from .validation import check_real
+from .validation import check_bool, check_real
 
 #: Damping rate of ``V``'s normal drift (:class:`ConstrainedVelocity`), chosen by measurement in ``docs/methods.md``.
 DEFAULT_RATE = 3.0
@@ -111,7 +111,15 @@ class ConstrainedVelocity(StateTerm):
         of an eps on average, which makes the energy drift upwards over long float64 runs (n = 4, L = 2.5,
         T = 1.2e5, eight starts: +2.3e-13 to +1.1e-12, mean +6.0e-13), where the jets' drifts a third as much
         (-0.03e-13 to +5.4e-13, mean +2.4e-13; ``docs/methods.md``).  For float64 runs beyond T of about 1e4,
-        choose ``"jets"``.
+        choose ``conserving`` (below), or ``"jets"``.
+    conserving
+        Take the normal acceleration's part along ``V`` out of ``V'`` (:meth:`SymbolicPieces.ambient_velocity_equations`):
+        0 on the exact solution, so the motion is the same, but the energy's rate becomes of second order in the
+        drift and in the acceleration's rounding.  Over T = 1.2e5 (n = 4, L = 2.5, eight starts) the energy then
+        shows no drift of one sign, where the default drifts by +0.0016 eps a step (``docs/methods.md``, "Long
+        runs"); near a whip of a light hinge (hinge masses 1e-3, 1, 1e2) the larger acceleration's rounding costs
+        it more: energy error 5.2e-12 against 1.5e-13 over a backward T = 12 through two such whips.  Off by
+        default; for long float64 runs of comparable masses, turn it on.
 
     Raises
     ------
@@ -123,7 +131,8 @@ class ConstrainedVelocity(StateTerm):
 
     label = "(a, J c)"
 
-    def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE, solve: str = "recursion") -> None:
+    def __init__(self, system: ConstrainedSystem, rate: float = DEFAULT_RATE, solve: str = "recursion",
+                 conserving: bool = False) -> None:
         if not isinstance(system, ConstrainedSystem):
             raise TypeError(f"system must be a manifold.constrained.ConstrainedSystem, got {type(system).__name__}")
         self.system = system
@@ -133,18 +142,21 @@ class ConstrainedVelocity(StateTerm):
         if solve not in SOLVES:
             raise ValueError(f"solve must be one of {SOLVES}, got {solve!r}")
         self.solve = solve
+        self.conserving = check_bool("conserving", conserving)
         self._compiled = compiled_constrained(system)
         self._values: dict[Any, NDArray] = {}  # fp_type -> parameter values
         self._speed_scale = speed_scale(system)  # once: each segment's damping rate needs it
         self._acceleration = self._compiled.acceleration(float, stabilised=False)  # the turning rate's, in float64
 
     def __repr__(self) -> str:
-        return f"ConstrainedVelocity({self.system!r}, rate={self.rate!r}, solve={self.solve!r})"
+        return (f"ConstrainedVelocity({self.system!r}, rate={self.rate!r}, solve={self.solve!r}, "
+                f"conserving={self.conserving!r})")
 
     @property
     def key(self) -> Hashable:
-        """Identity of the compiled equations: the system's key, its metric's sparsity and the velocity solve."""
-        return ("constrained-velocity", self.system.key, self._compiled.layout, self.solve)
+        """Identity of the compiled equations: the system's key, its metric's sparsity, the velocity solve and
+        whether the equations are conserving."""
+        return ("constrained-velocity", self.system.key, self._compiled.layout, self.solve, self.conserving)
 
     @property
     def n_constraint_pars(self) -> int:
@@ -162,7 +174,7 @@ class ConstrainedVelocity(StateTerm):
         if equations:
             raise ValueError(f"{self!r} sets the state: it must be the first term")
         return pieces.ambient_velocity_equations(self.pieces(pieces.fp_type), self.n_constraint_pars, offset,
-                                                 self.solve == "recursion")
+                                                 self.solve == "recursion", self.conserving)
 
     def pieces(self, fp_type: Any) -> ConstrainedPieces:
         """The system's symbolic equations in ``fp_type``."""
@@ -175,12 +187,12 @@ class ConstrainedVelocity(StateTerm):
         return self._values[fp_type]
 
     def __getstate__(self) -> dict:
-        """Pickle the system, the rate and the solve only (for ensembles on other processes): the compiled store
-        holds a lock."""
-        return {"system": self.system, "rate": self.rate, "solve": self.solve}
+        """Pickle the system and the options only (for ensembles on other processes): the compiled store holds a
+        lock."""
+        return {"system": self.system, "rate": self.rate, "solve": self.solve, "conserving": self.conserving}
 
     def __setstate__(self, state: dict) -> None:
-        self.__init__(state["system"], state["rate"], state["solve"])  # type: ignore[misc]
+        self.__init__(state["system"], state["rate"], state["solve"], state["conserving"])  # type: ignore[misc]
 
     def check(self, family: CompiledFamily, form: str) -> None:
         """Refuse a system of another ambient dimension than the family's points, and a ``form`` other than the

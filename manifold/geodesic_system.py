@@ -257,13 +257,14 @@ class SymbolicPieces:
         return [hy.sum([M[r][s] * self.z[s] for s in range(N)] + [hy.par[lay.map_index + N * N + r]]) for r in range(N)]
 
     def ambient_velocity_equations(self, constrained: Any, n_constraint_pars: int, offset: int,
-                                   recursion: bool = True) -> list[tuple]:
+                                   recursion: bool = True, conserving: bool = False) -> list[tuple]:
         r"""The geodesic with the chart frame's ambient velocity ``V = J c`` as state: ``(a, V)`` instead of ``(a, c)``.
 
         .. math::
 
-            J a' = V, \qquad V' = M^{-1} f(M z(a) + m, M J a') - \gamma \big(\delta - \frac{\langle \delta, J a'
-            \rangle_W}{2 E} J a'\big), \qquad \delta = V - J a',
+            J a' = V, \qquad V' = g - \sigma \frac{\langle g, V \rangle_W}{2 E} J a' - \gamma \big(\delta -
+            \frac{\langle \delta, J a' \rangle_W}{2 E} J a'\big), \qquad g = M^{-1} f(M z(a) + m, M J a'),
+            \qquad \delta = V - J a',
 
         with ``f(x, v)`` the constrained acceleration ``K^{-1} G^T M_G^{-1} (-(dG/dt) v)`` of a
         :class:`~manifold.constrained.ConstrainedSystem` whose zero set is the family's image (its ``x``, ``v`` in
@@ -280,7 +281,11 @@ class SymbolicPieces:
         velocity as the tangent space turns, and the energy error grew like ``t^0.6..0.9`` instead of ``sqrt(t)``.
         The damping leaves out ``delta``'s part along ``J a'`` (``W`` the chart frame's metric, ``|J a'|_W^2 = 2 E``
         with ``E`` the segment's energy): it moves no energy, where damping all of ``delta`` pumped the rounding
-        bias of ``J a'``'s length into it (``docs/math.md`` §7b).
+        bias of ``J a'``'s length into it (``docs/math.md`` §7b).  With ``conserving`` (``sigma = 1``; else 0) the
+        second term takes out ``g``'s part along ``V``: ``g`` is normal to the tangent space, so on the exact
+        solution (``delta = 0``) that part is 0 and the term vanishes; off it, the energy's rate ``<V, V'>_W`` is of
+        second order in ``delta`` and in the rounding of ``g``, where without the term it is of first order
+        (``docs/math.md`` §7b).
         """
         lay, N = self.layout, self.N
         V = self.ambient_velocity()
@@ -294,9 +299,14 @@ class SymbolicPieces:
         # hundredths of an eps (the jets' forward substitution too); damping the whole drift would pump that bias
         # into the energy, so the drift's part along J a' is left alone (K's inner product, |J a'|^2 = 2 E)
         along = _dot(drift, self._apply_W(JC)) * inverse_2E
-        return (list(zip(self.a, c))
-                + [(V[r], hy.sum([M_inv[r][s] * f[s] for s in range(N)]) - gamma * (drift[r] - along * JC[r]))
-                   for r in range(N)])
+        g = [hy.sum([M_inv[r][s] * f[s] for s in range(N)]) for r in range(N)]
+        if conserving:
+            # numerical trap: float64 rounding leaves g a part along V (the right-hand side shortened V by 0.006 eps
+            # a step), and the states it reaches gain under the exact flow (+0.004): two first-order channels into
+            # the energy, whose remainder drifted +0.0016 eps a step (T = 1.2e5: 7 standard errors); taken out here
+            tangential = _dot(g, self._apply_W(V)) * inverse_2E
+            g = [g[r] - tangential * JC[r] for r in range(N)]
+        return list(zip(self.a, c)) + [(V[r], g[r] - gamma * (drift[r] - along * JC[r])) for r in range(N)]
 
     def ambient_velocity(self) -> list[hy.expression]:
         """The state variables ``V`` of :meth:`ambient_velocity_equations` (the chart frame's ambient velocity)."""
