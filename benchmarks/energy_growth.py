@@ -180,9 +180,8 @@ class _ProbedVelocity(ConstrainedVelocity):
     def rewrapped(self, segment):
         project = super().rewrapped(segment)
         k, N = segment.family.family.dim, segment.family.family.point_dim
-        pars = np.asarray(segment.pars, dtype=float)
-        at = len(pars) - (2 * N * N + N)  # the chart's M, m and M^-1 end the parameters (ChartNumerics.pars)
-        M = pars[at : at + N * N].reshape(N, N).astype(np.longdouble)
+        at = segment.family.layout.map_index  # the chart's M in its parameters (ChartNumerics.pars)
+        M = np.asarray(segment.pars[at : at + N * N], dtype=np.longdouble).reshape(N, N)
         W = M.T @ np.asarray(self.system.metric_matrix, dtype=np.longdouble) @ M
 
         def logged(state):

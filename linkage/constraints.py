@@ -47,7 +47,7 @@ import heyoka as hy
 
 from charts.chain_geometry import closure_tolerances, to_real
 from manifold.backends import Cx
-from manifold.constrained import ROUNDING_RESIDUAL, ConstrainedSystem
+from manifold.constrained import ConstrainedSystem, floor_scales
 from manifold.options import StartCheck, check_group
 from manifold.validation import check_real
 
@@ -503,7 +503,7 @@ class ChainSystem(ConstrainedSystem):
         takes every start that :meth:`Chain.check_configuration` takes (with the generic bound on ``c_k``
         itself, a rod 0.6e-9 too long was refused)."""
         t = closure_tolerances(self.chain.lengths, START_CLOSURE_TOLERANCE)
-        return t * (2 + t) + np.maximum(ROUNDING_RESIDUAL, self.rounding_scales) * (np.finfo(float).eps / 2)
+        return t * (2 + t) + floor_scales(self) * (np.finfo(float).eps / 2)
 
     @property
     def metric_matrix(self) -> NDArray:

@@ -67,7 +67,7 @@ from .validation import check_bool, check_real, check_time_grid, real_array
 
 __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "ConstrainedLayout", "ConstrainedSystem",
            "compiled_constrained", "constraint_bound", "damping_rate", "default_compact_mode", "solve_constrained",
-           "speed_scale", "verdict"]
+           "floor_scales", "speed_scale", "verdict"]
 
 Expr: TypeAlias = hy.expression
 #: How drift off the constraints is held back (see the module docstring).
@@ -153,8 +153,7 @@ class ConstrainedSystem(ABC):
         A system whose users check their starts in another measure (a chain's relative rod lengths) overrides it
         with that check's bound on ``c``, so that the solver takes every start the system's own check takes.
         """
-        scales = np.maximum(ROUNDING_RESIDUAL, np.asarray(self.rounding_scales, dtype=float))
-        return np.maximum(START_CONSTRAINT_TOLERANCE, START_ROUNDING_MARGIN * scales * unit_roundoff(float))
+        return np.maximum(START_CONSTRAINT_TOLERANCE, START_ROUNDING_MARGIN * floor_scales(self) * unit_roundoff(float))
 
     @property
     @abstractmethod
@@ -635,7 +634,7 @@ class ConstrainedGeometry:
         self.eps = unit_roundoff(fp_type)
         self.speed_scale = speed_scale(system)
         self.K = as_fp(np.asarray(system.metric_matrix, dtype=float), fp_type)  # float64 entries: exact in fp_type
-        scales = np.maximum(ROUNDING_RESIDUAL, np.asarray(system.rounding_scales, dtype=float))
+        scales = floor_scales(system)
         if scales.shape != (self.m,) or not np.all(np.isfinite(scales)):
             raise ValueError(f"{system!r}.rounding_scales must be {self.m} finite numbers, got {scales!r}")
         #: each constraint's floor over the common one (ROUNDING_RESIDUAL unit roundoffs), >= 1: drift is judged by it
@@ -787,6 +786,12 @@ class ConstrainedGeometry:
             k = int(np.argmax(~np.isfinite(E0f)))
             raise ValueError(f"{name(k).replace('x0', 'v0', 1)} gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0[k])):.3g})")
         return x, v, E0, damping_rate(self.speed_scale, rate, E0f, t_final)
+
+
+def floor_scales(system: ConstrainedSystem) -> NDArray:
+    """Each constraint's rounding floor in unit roundoffs, ``max(ROUNDING_RESIDUAL, rounding_scales[k])``: the one
+    rule behind the start check, the projection's target and the drift check."""
+    return np.maximum(ROUNDING_RESIDUAL, np.asarray(system.rounding_scales, dtype=float))
 
 
 def speed_scale(system: ConstrainedSystem) -> float:
