@@ -27,7 +27,7 @@ client's wait as usual, without partial results).
 
 from __future__ import annotations
 
-import _signal  # type: ignore[import-not-found]  # signal's C module: handlers come back as they are (below)
+import signal
 import threading
 import time
 from collections.abc import Callable
@@ -109,12 +109,10 @@ class _Block:
 
     def __enter__(self) -> Listener:
         main = threading.current_thread() is threading.main_thread()
-        # _signal, not signal: signal.signal and signal.getsignal try each handler returned as an enum member, which
-        # raises and catches a ValueError for a Python handler: 3 us a call, and 10 us a block, a twentieth of a short solve
-        self.install = main and (_STATE["depth"] > 0 or _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler)
+        self.install = main and (_STATE["depth"] > 0 or signal.getsignal(signal.SIGINT) is signal.default_int_handler)
         if self.install:
             if _STATE["depth"] == 0:
-                _STATE["pressed"], _STATE["previous"] = False, _signal.signal(_signal.SIGINT, _on_interrupt)
+                _STATE["pressed"], _STATE["previous"] = False, signal.signal(signal.SIGINT, _on_interrupt)
             _STATE["depth"] += 1
         return Listener(self.install or (not main and _STATE["depth"] > 0))
 
@@ -122,7 +120,7 @@ class _Block:
         if self.install:
             _STATE["depth"] -= 1
             if _STATE["depth"] == 0:
-                _signal.signal(_signal.SIGINT, _STATE["previous"])
+                signal.signal(signal.SIGINT, _STATE["previous"])
 
 
 def settled(pressed: bool, status: SolveStatus, message: str, t: Any) -> tuple[SolveStatus, str]:
