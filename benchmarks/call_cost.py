@@ -13,7 +13,7 @@ For ``method="hinges"`` at n = 4 (and ``--n``), CPU time of this process, the fa
 * a T = 20 call sampling 101 times (``SaveAt(t_eval=..., dense=False)``), at the default tolerance and at
   1e-10, against heyoka's bare ``propagate_grid`` on the same integrator and times;
 * the bytes of dense output per Taylor step (T = 10);
-* with ``--breakdown``: the pieces of a one-step call (the start's checks, the start's projection, the geometry
+* with ``--breakdown``: the pieces of a one-step call (the start's arguments, the start's compiled check and projection, the geometry
   call that checks the step, the Ctrl-C block, heyoka's step), each timed alone.
 
 ``--baseline DIR`` measures another checkout of the library (``DIR`` on ``PYTHONPATH``) in a
@@ -128,7 +128,7 @@ def breakdown(n: int, rounds: int) -> dict[str, float]:
     """Seconds per call of the pieces of a one-step ``free_motion`` (no dense output), each timed alone over the
     ``STARTS`` starts (the fastest of ``rounds`` interleaved rounds).  Alone, a piece runs with its code and data
     in the caches: the pieces sum to less than the whole call."""
-    from linkage.constraints import chain_system, start_state
+    from linkage.constraints import chain_system, start_arguments, start_state
     from linkage.motion import chart_metric, free_motion
     from manifold import SaveAt, StartCheck
     from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode, solve_constrained
@@ -157,13 +157,10 @@ def breakdown(n: int, rounds: int) -> dict[str, float]:
 
         pieces = {
             "free_motion": lambda k: free_motion(chain, *starts[k], SHORT_T, method="hinges", save=no_dense),
-            "  start_state": lambda k: start_state(chain, *starts[k], SHORT_T, check),
-            "    closure check": lambda k: chain.check_one_configuration(starts[k][0], "hinges0"),
-            "    tangency check": lambda k: (checked[k].constraints.tangency_residual(checked[k].x0, checked[k].v0),
-                                             checked[k].constraints.tangency_allowance(checked[k].v0, 1e-9)),
+            "  start_arguments": lambda k: start_arguments(chain, *starts[k], SHORT_T),
             "  solve_constrained": lambda k: solve_constrained(system, checked[k].x0, checked[k].v0, SHORT_T,
-                                                               save=no_dense, metric=metric),
-            "    ConstrainedGeometry.start": lambda k: geo.start(*rows[k], SHORT_T, 1.0),
+                                                               save=no_dense, metric=metric, start=check),
+            "    ConstrainedGeometry.start": lambda k: geo.start(*rows[k], SHORT_T, 1.0, check=check),
             "      its projection call": lambda k: geo.projection(*rows[k]),
             "    a geometry call (the step's check)": lambda k: geo(*rows[k]),
             "      its compiled function": lambda k: geo.cf(columns[k], pars=one_column),

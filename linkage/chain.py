@@ -397,13 +397,17 @@ class Chain:
             )
         return h
 
-    def check_one_configuration(self, hinges: ArrayLike, name: str, hint: str = "") -> NDArray:
-        """:meth:`check_configuration` (to :data:`START_CLOSURE_TOLERANCE`) of one configuration: ``ValueError`` naming ``name`` for any other
-        shape than ``(n-1,)`` (``hint`` appended to the message)."""
-        h = self.check_configuration(hinges, tol=START_CLOSURE_TOLERANCE)
+    def one_configuration(self, hinges: ArrayLike, name: str, hint: str = "") -> NDArray:
+        """:meth:`as_hinges` of one configuration: ``ValueError`` naming ``name`` for any other shape than ``(n-1,)``
+        (``hint`` appended to the message).  Closure is not checked (:meth:`check_one_configuration`)."""
+        h = self.as_hinges(hinges)
         if h.shape != (self.n - 1,):
             raise ValueError(f"{name} must be one configuration, shape (n - 1,) = ({self.n - 1},), got {h.shape}{hint}")
         return h
+
+    def check_one_configuration(self, hinges: ArrayLike, name: str, hint: str = "") -> NDArray:
+        """:meth:`one_configuration`, closing to :data:`START_CLOSURE_TOLERANCE` (:meth:`check_configuration`)."""
+        return self.check_configuration(self.one_configuration(hinges, name, hint), tol=START_CLOSURE_TOLERANCE)
 
     def angles(self, hinges: ArrayLike) -> NDArray:
         """Rod angles ``theta_1 .. theta_n`` in ``(-pi, pi]`` of a configuration."""

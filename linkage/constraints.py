@@ -54,7 +54,7 @@ from manifold.validation import check_real
 from . import rods
 from .chain import START_CLOSURE_TOLERANCE, Chain
 
-__all__ = ["ChainSystem", "chain_system", "HingeConstraints", "HingeStart", "start_state", "start_states"]
+__all__ = ["ChainSystem", "chain_system", "HingeConstraints", "HingeStart", "start_arguments", "start_state", "start_states"]
 
 #: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
 _PROJECTION_STEPS = 8
@@ -172,11 +172,6 @@ class HingeConstraints:
         Gv = rods.constraint_rates(self._rods(x), self._rod_rates(v), self._q)
         # per rod on the numbers of one vector (Python floats), one array op fewer per rod on batches
         return _stacked([lk * abs(g) for lk, g in zip(self._lengths, Gv)]).max(axis=-1)
-
-    def tangency_allowance(self, v: NDArray, tangent_tol: float) -> NDArray:
-        """``tangent_tol * max(1, |v|)``: how large :meth:`tangency_residual` may be for ``v`` (``(..., 2(n-1))``) to
-        count as tangent; the one rule of every start and tangent-vector check in ``linkage``."""
-        return tangent_tol * np.maximum(1.0, np.sqrt(np.einsum("...i,...i->...", v, v)))  # np.linalg.norm: 3x slower
 
     def min_norm_correction(self, G: NDArray, r: NDArray) -> NDArray:
         """The K-smallest ``d`` with ``G d = r``.
@@ -325,6 +320,29 @@ class HingeStart(NamedTuple):
     t_final: float
 
 
+def start_arguments(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float) -> tuple[NDArray, NDArray, float]:
+    """The start of a hinge-space integration with what needs no constraint checked: generic lengths
+    (:meth:`Chain.check_generic`), one configuration and one velocity of ``n - 1`` finite complex hinges each, and
+    ``t_final`` finite and nonzero (:func:`manifold.validation.check_real`).
+
+    Closure and tangency are left to the caller: :func:`start_state` checks them in numpy, and
+    :func:`linkage.free_motion` leaves them to the hinge solver's compiled start check
+    (:meth:`manifold.constrained.ConstrainedGeometry.start`), which projects the start in the same call.
+
+    Returns
+    -------
+    tuple
+        ``(hinges0, velocity0, t_final)``: complex128 vectors ``(n-1,)`` (fresh arrays, whose ``view(float)`` is the
+        real interleaved vector) and a float.
+    """
+    chain.check_generic()
+    h0 = chain.one_configuration(hinges0, "hinges0", " (for many starts at once: free_motions)")
+    w0 = chain.as_hinges(velocity0, "velocity0")
+    if w0.shape != (chain.n - 1,):
+        raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {w0.shape}")
+    return h0, w0, check_real("t_final", t_final, nonzero=True)
+
+
 def start_state(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, check: StartCheck) -> HingeStart:
     """Validate the start of a hinge-space integration (shared by every hinge-space method), once per solve.
 
@@ -355,20 +373,16 @@ def start_state(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final:
         the real interleaved start position and velocity, and ``t_final`` as a float.
     """
     check = check_group("start", check, StartCheck)
-    chain.check_generic()
-    h0 = chain.check_one_configuration(hinges0, "hinges0", " (for many starts at once: free_motions)")
-    v0 = chain.as_hinges(velocity0, "velocity0")
-    if v0.shape != (chain.n - 1,):
-        raise ValueError(f"velocity0 must have n - 1 = {chain.n - 1} complex entries, got shape {v0.shape}")
-    t_final = check_real("t_final", t_final, nonzero=True)
+    h0, w0, t_final = start_arguments(chain, hinges0, velocity0, t_final)
+    chain.check_configuration(h0, tol=START_CLOSURE_TOLERANCE)
     system = HingeConstraints(chain)
-    x0, v0 = h0.view(float), v0.view(float)  # interleaved (x_1, y_1, ...): to_real of fresh complex128 vectors, no copy
+    x0, v0 = h0.view(float), w0.view(float)  # interleaved (x_1, y_1, ...): to_real of fresh complex128 vectors, no copy
     with np.errstate(over="ignore", invalid="ignore"):
         energy = 0.5 * v0 @ system.K @ v0
     if not np.isfinite(energy):
         raise ValueError(f"velocity0 gives a non-finite kinetic energy (max |velocity0| = {np.max(np.abs(v0)):.3g})")
     residual = float(system.tangency_residual(x0, v0))
-    allowed = float(system.tangency_allowance(v0, check.tangent_tol))
+    allowed = float(check.allowance(v0))
     if residual > allowed:
         if not check.project_velocity:
             raise ValueError(
@@ -409,7 +423,7 @@ def start_states(
     chain.check_generic()
     residual = system.tangency_residual(X0, V0)
     ok = (chain.closure_excess(H) <= 1) & np.isfinite(energy)
-    ok &= residual <= system.tangency_allowance(V0, check.tangent_tol)
+    ok &= residual <= check.allowance(V0)
     for k in np.nonzero(~ok)[0]:
         try:
             _, X0[k], V0[k], _ = start_state(chain, H[k], W[k], t_final, check)
@@ -504,6 +518,12 @@ class ChainSystem(ConstrainedSystem):
         itself, a rod 0.6e-9 too long was refused)."""
         t = closure_tolerances(self.chain.lengths, START_CLOSURE_TOLERANCE)
         return t * (2 + t) + floor_scales(self) * (np.finfo(float).eps / 2)
+
+    @property
+    def tangency_weights(self) -> NDArray:
+        """The rod lengths ``l_k``: ``l_k (G v)_k = 2 e_k . e_k' / l_k`` is twice the rate of change of rod ``k``'s
+        length, the measure of :func:`start_state`'s tangency check."""
+        return np.asarray(self.chain.lengths, dtype=float)
 
     @property
     def metric_matrix(self) -> NDArray:

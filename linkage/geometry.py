@@ -122,7 +122,7 @@ def _tangent_vectors(constraints: HingeConstraints, x0: NDArray, values: ArrayLi
         raise ValueError(f"{name} must have shape (n - 1,) = ({chain.n - 1},) or (k, {chain.n - 1}), got {w.shape}")
     rows = np.atleast_2d(chain.to_point(w)).astype(float)
     residual = constraints.tangency_residual(np.broadcast_to(x0, rows.shape), rows)
-    allowed = constraints.tangency_allowance(rows, start.tangent_tol)
+    allowed = start.allowance(rows)
     bad = ~(residual <= allowed)
     if np.any(bad):
         k = int(np.argmax(bad))

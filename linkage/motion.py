@@ -23,14 +23,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from manifold import GeodesicSolution, InducedMetric, solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
-from manifold.constrained import solve_constrained
+from manifold.constrained import StartRefused, solve_constrained
 from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, PROJECTED_START, Precision, SaveAt,
                               StartCheck, check_group, takes_option_groups)
 from manifold.progress import ProgressArgument
 from manifold.sundman import SundmanStepper
 
 from .chain import Chain
-from .constraints import ChainSystem, chain_system, start_state
+from .constraints import ChainSystem, chain_system, start_arguments, start_state
 from .ensemble import EnsembleMotion, free_motions
 from .lyapunov import lyapunov_exponent, lyapunov_exponents
 from .time_factor import ChainTimeFactor
@@ -232,8 +232,11 @@ def free_motion(
 ) -> ChainMotion:
     """Integrate the chain's force-free motion from ``hinges0`` with hinge velocity ``velocity0``.
 
-    The start is checked in hinge space, where the rod constraints give an
-    exact tangency test independent of any chart (:func:`linkage.constraints.start_state`).
+    The start is checked once, in hinge space, where the rod constraints give an
+    exact tangency test independent of any chart: in numpy for the charts
+    (:func:`linkage.constraints.start_state`), and for the hinges with the same bounds in the compiled call that
+    also projects the start (:meth:`manifold.constrained.ConstrainedGeometry.start`; a refusal is reported in the
+    chain's terms, by :func:`~linkage.constraints.start_state`).
     Both methods integrate the same geodesic of the kinetic-energy metric with
     heyoka's Taylor method and return the same :class:`ChainMotion`:
 
@@ -301,16 +304,23 @@ def free_motion(
     if method == AUTO:
         method = choose_method(chain, kwargs)
     _check_options(method, kwargs)
+    if method == "hinges":
+        h0, w0, t_final = start_arguments(chain, hinges0, velocity0, t_final)
+        try:  # closure and tangency checked in the compiled call that projects the start (one check of the start)
+            solution = solve_constrained(chain_system(chain), h0.view(float), w0.view(float), t_final,
+                                         precision=precision, save=save, metric=chart_metric(chain), progress=progress,
+                                         start=start, **kwargs)
+        except StartRefused as refused:
+            start_state(chain, hinges0, velocity0, t_final, start)  # the refusal in the chain's terms, naming hinges0
+            raise ValueError(f"the start lies within rounding of a tolerance of the start check, which the hinge "
+                             f"solver's compiled check refuses: {refused}") from None
+        return ChainMotion(chain, solution)
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
     # velocity0 is tangent to start.tangent_tol (checked above): the chart solver's projection only removes rounding
-    if method == "hinges":
-        solution = solve_constrained(chain_system(chain), x0, v0, t_final, precision=precision, save=save,
-                                     metric=chart_metric(chain), progress=progress, **kwargs)
-    else:
-        if kwargs.get("stepper") is None:  # Sundman's time: 13-44 % fewer steps (docs/methods.md)
-            kwargs["stepper"] = SundmanStepper(ChainTimeFactor(chain), tol=precision.tol,
-                                               velocity=_default_velocity(chain, kwargs))
-            precision = dataclasses.replace(precision, tol=None)  # the stepper holds it
-        solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, precision=precision, save=save,
-                                       start=PROJECTED_START, progress=progress, **kwargs)
+    if kwargs.get("stepper") is None:  # Sundman's time: 13-44 % fewer steps (docs/methods.md)
+        kwargs["stepper"] = SundmanStepper(ChainTimeFactor(chain), tol=precision.tol,
+                                           velocity=_default_velocity(chain, kwargs))
+        precision = dataclasses.replace(precision, tol=None)  # the stepper holds it
+    solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, precision=precision, save=save,
+                                   start=PROJECTED_START, progress=progress, **kwargs)
     return ChainMotion(chain, solution)

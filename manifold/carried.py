@@ -189,7 +189,7 @@ def solve_carried(system: ConstrainedSystem, x0: ArrayLike, v0: ArrayLike, t_fin
         The :class:`CarriedTerm` s (at least one).
     **options
         Passed on to :func:`~manifold.constrained.solve_constrained` (``precision``, ``stabilisation``
-        ``"baumgarte"`` or ``"none"``, ``rate``, ``compact_mode``, ``throw``, ``progress``); dense output is
+        ``"baumgarte"`` or ``"none"``, ``rate``, ``compact_mode``, ``throw``, ``progress``, ``start``); dense output is
         always kept (``save`` is not taken), since the carried values are read from it.
 
     Returns
@@ -206,6 +206,6 @@ def solve_carried(system: ConstrainedSystem, x0: ArrayLike, v0: ArrayLike, t_fin
     for name in ("save", "dense", "t_eval", "carry"):
         if name in options:
             raise TypeError(f"solve_carried does not take {name}= (the carried values are read from dense output)")
-    refuse_moved_options("solve_carried", options, PASSED_ON_GROUPS)
+    refuse_moved_options("solve_carried", options, (*PASSED_ON_GROUPS, "start"))
     solution = solve_constrained(system, x0, v0, t_final, carry=terms, save=DEFAULT_SAVE, **options)
     return CarriedSolution(solution, terms, ConstrainedGeometry(system, solution.fp_type))

@@ -58,7 +58,7 @@ from .carried import CarriedTerm, carried_violation, slot_ranges
 from .expression_linalg import ldl_solve
 from .interrupt import BUDGET, INTERRUPTED, SolveInterrupted, interruptible, settled
 from .metric import InducedMetric
-from .options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, check_group, takes_option_groups
+from .options import DEFAULT_PRECISION, DEFAULT_SAVE, Precision, SaveAt, StartCheck, check_group, takes_option_groups
 from .precision import MultiPrecision, as_fp, heyoka_fp_kwargs, is_double, unit_roundoff
 from .progress import ProgressArgument, as_callback, reporting, solve_progress
 from .solution import GeodesicIntegrationError, GeodesicSolution, Segment, SolverStats, SolveStatus
@@ -66,6 +66,7 @@ from .steppers import taylor_advance, taylor_relative_tolerance
 from .validation import check_bool, check_real, check_time_grid, real_array
 
 __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "ConstrainedLayout", "ConstrainedSystem",
+           "StartRefused",
            "compiled_constrained", "constraint_bound", "damping_rate", "default_compact_mode", "solve_constrained",
            "floor_scales", "speed_scale", "verdict"]
 
@@ -88,6 +89,11 @@ START_ROUNDING_MARGIN = 100
 #: a float64 start by ``eps / sigma_min(G)``, 6.7e-13 at ``L = 4 - 1e-9``, and its velocity by 6e-9 with the turned
 #: tangent space.
 ROUNDING_RESIDUAL = 16
+
+
+class StartRefused(ValueError):
+    """The start check of :meth:`ConstrainedGeometry.start` refused a start (off the constraints, a velocity off the
+    tangent space, or a non-finite energy): a ``ValueError`` whose message names the row and the bound."""
 
 
 class ConstrainedSystem(ABC):
@@ -154,6 +160,14 @@ class ConstrainedSystem(ABC):
         with that check's bound on ``c``, so that the solver takes every start the system's own check takes.
         """
         return np.maximum(START_CONSTRAINT_TOLERANCE, START_ROUNDING_MARGIN * floor_scales(self) * unit_roundoff(float))
+
+    @property
+    def tangency_weights(self) -> NDArray:
+        """Per constraint, the weight ``w_k`` of its rate in the tangency check of a start velocity ``v`` (a
+        :class:`~manifold.options.StartCheck` given to :func:`solve_constrained`): ``max_k w_k |(G v)_k|`` must not
+        exceed :meth:`StartCheck.allowance <manifold.options.StartCheck.allowance>`; shape ``(m,)``, default ones.
+        A system whose constraints are relative (a chain's ``|e_k|^2 / l_k^2 - 1``) weighs them back to velocities."""
+        return np.ones(self.n_constraints)
 
     @property
     @abstractmethod
@@ -640,6 +654,11 @@ class ConstrainedGeometry:
         #: each constraint's floor over the common one (ROUNDING_RESIDUAL unit roundoffs), >= 1: drift is judged by it
         self.weights = scales / ROUNDING_RESIDUAL
         self.floors = scales * self.eps
+        self.tangency_weights = np.asarray(system.tangency_weights, dtype=float)
+        if self.tangency_weights.shape != (self.m,) or not np.all(self.tangency_weights >= 0) \
+                or not np.all(np.isfinite(self.tangency_weights)):
+            raise ValueError(f"{system!r}.tangency_weights must be {self.m} finite numbers >= 0, "
+                             f"got {self.tangency_weights!r}")
         self.start_tolerances = np.asarray(system.start_tolerances, dtype=float)
         if self.start_tolerances.shape != (self.m,) or not np.all(self.start_tolerances > 0) \
                 or not np.all(np.isfinite(self.start_tolerances)):
@@ -757,34 +776,45 @@ class ConstrainedGeometry:
         _, _, u, E = self.projection(x, v)  # x moved: v projected at the new x
         return x, u, E
 
-    def start(self, x0: NDArray, v0: NDArray, t_final: float, rate: float,
-              first_index: int | None = None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    def start(self, x0: NDArray, v0: NDArray, t_final: float, rate: float, first_index: int | None = None,
+              check: StartCheck | None = None) -> tuple[NDArray, NDArray, NDArray, NDArray]:
         """Check float64 starts (rows ``(B, N)``) and complete them to the working precision.
 
         Returns ``(x, v, E0, alpha)`` per row: ``x0`` projected onto ``c = 0``
         and ``v0`` K-orthogonally onto ``ker G`` (:meth:`project`), the kinetic
         energy there, and the Baumgarte rate ``alpha = sign(t_final) rate
         sqrt(2 E0 tr(K^-1)) / (N length_scale)`` (:attr:`ConstrainedSystem.length_scale`).
-        Raises ``ValueError`` if some ``|c_k(x0)|`` exceeds its bound (:attr:`ConstrainedSystem.start_tolerances`) or an
-        energy is not finite, naming the row as ``x0[first_index + k]`` (``x0`` alone if ``first_index`` is ``None``).
+        Raises :class:`StartRefused` if some ``|c_k(x0)|`` exceeds its bound (:attr:`ConstrainedSystem.start_tolerances`),
+        an energy is not finite or, with a ``check``, a ``v0`` is off the tangent space: ``max_k w_k |(G v0)_k|``
+        (:attr:`ConstrainedSystem.tangency_weights`) above :meth:`StartCheck.allowance
+        <manifold.options.StartCheck.allowance>` (unless ``check.project_velocity``); the row is named
+        ``x0[first_index + k]`` (``x0`` alone if ``first_index`` is ``None``).  All from the one compiled call
+        that projects (:meth:`projection`), so a start is checked once.
         """
-        def name(k: int) -> str:
-            return "x0" if first_index is None else f"x0[{first_index + k}]"
+        def name(k: int, what: str = "x0") -> str:
+            return what if first_index is None else f"{what}[{first_index + k}]"
 
         x, v = as_fp(x0, self.fp), as_fp(v0, self.fp)  # new arrays: the projection changes x in place
-        projected = self.projection(x, v)  # the check's c is the projection's first
+        projected = self.projection(x, v)  # the check's c and G v are the projection's first
         c0 = np.abs(projected[0].astype(float))
         if not (c0 <= self.start_tolerances).all():  # NaN fails too
             bad = ~(c0 <= self.start_tolerances).all(axis=1)
             k = int(np.argmax(bad))
             j = int(np.argmax(~(c0[k] <= self.start_tolerances)))
-            raise ValueError(f"{name(k)} is not on the constraint manifold: |c_{j}(x0)| = {c0[k, j]:.3g} exceeds "
-                             f"{self.start_tolerances[j]:.3g}")
+            raise StartRefused(f"{name(k)} is not on the constraint manifold: |c_{j}(x0)| = {c0[k, j]:.3g} exceeds "
+                               f"{self.start_tolerances[j]:.3g}")
+        if check is not None and not check.project_velocity:
+            residual = (np.abs(projected[1].astype(float)) * self.tangency_weights).max(axis=1, initial=0.0)
+            allowed = check.allowance(v0)
+            if not (residual <= allowed).all():
+                k = int(np.argmax(~(residual <= allowed)))
+                raise StartRefused(f"{name(k, 'v0')} is not tangent to the constraint manifold: max_k w_k |(G v0)_k| = "
+                                   f"{residual[k]:.3g} exceeds tangent_tol * max(1, |v0|) = {allowed[k]:.3g}")
         x, v, E0 = self._projected(x, v, projected, c0)
         E0f = np.array([float(e) for e in E0])
         if not np.isfinite(E0f).all():
             k = int(np.argmax(~np.isfinite(E0f)))
-            raise ValueError(f"{name(k).replace('x0', 'v0', 1)} gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0[k])):.3g})")
+            raise StartRefused(f"{name(k, 'v0')} gives a non-finite kinetic energy (max |v0| = {np.max(np.abs(v0[k])):.3g})")
         return x, v, E0, damping_rate(self.speed_scale, rate, E0f, t_final)
 
 
@@ -904,6 +934,7 @@ def solve_constrained(
     progress: ProgressArgument = None,
     carry: tuple[CarriedTerm, ...] = (),
     budget: Budget = DEFAULT_BUDGET,
+    start: StartCheck | None = None,
 ) -> GeodesicSolution:
     """Integrate the geodesic of ``system`` from ``(x0, v0)`` with heyoka's Taylor method, in ambient coordinates.
 
@@ -917,7 +948,7 @@ def solve_constrained(
         velocity (shape ``(N,)``).  Both are completed to the working precision:
         ``x0`` projected onto ``c = 0``, ``v0`` K-orthogonally onto ``ker G``
         (so a float64 start is an exact start for a quad-precision run).
-        Check tangency before calling; this projection only removes rounding.
+        Without ``start``, check tangency before calling: this projection only removes rounding.
     t_final
         Final time, finite and nonzero; negative integrates backward.
     precision
@@ -961,6 +992,11 @@ def solve_constrained(
         :class:`~manifold.carried.CarriedTerm` s integrated along (use :func:`manifold.carried.solve_carried`,
         which reads them back); their invariants are checked at every recorded step.  Not with
         ``"projection"``, which would have to project them too.
+    start
+        A :class:`~manifold.options.StartCheck` ``(tangent_tol, project_velocity)``: ``v0`` is also checked for
+        tangency, ``max_k w_k |(G v0)_k| <= tangent_tol * max(1, |v0|)`` (:attr:`ConstrainedSystem.tangency_weights`),
+        from the same compiled call as the closure check and the projection, and refused unless
+        ``project_velocity`` (then projected); ``None`` (default): the caller has checked it.
 
     Returns
     -------
@@ -976,6 +1012,8 @@ def solve_constrained(
     wall0 = time.perf_counter()
     precision, save = check_group("precision", precision, Precision), check_group("save", save, SaveAt)
     fp_type, tol, dense, t_eval = precision.fp_type, precision.tol, save.keeps_dense(True), save.t_eval
+    if start is not None:
+        start = check_group("start", start, StartCheck)
     report = as_callback(progress)
     t_final = check_real("t_final", t_final, nonzero=True)
     if stabilisation not in STABILISATIONS:
@@ -1005,7 +1043,7 @@ def solve_constrained(
     with reporting(report):  # compiles the geometry function
         geo = ConstrainedGeometry.of(system, fp_type)
     comp = geo._compiled  # compiled_constrained(system), held by the geometry
-    xs, vs, E0s, alphas = geo.start(x0[None, :], v0[None, :], t_final, rate)
+    xs, vs, E0s, alphas = geo.start(x0[None, :], v0[None, :], t_final, rate, check=start)
     x, v, E0, alpha = xs[0], vs[0], E0s[0], float(alphas[0])
     carried = np.concatenate([np.zeros(0, dtype=x.dtype)] + [term.start(geo, x, v) for term in carry])
     first = np.concatenate([x, v, carried])

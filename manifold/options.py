@@ -21,6 +21,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any, ParamSpec, TypeVar
 
+import numpy as np
 from numpy.typing import NDArray
 
 from .precision import resolve_fp_type
@@ -172,6 +173,12 @@ class StartCheck:
     def __post_init__(self) -> None:
         object.__setattr__(self, "tangent_tol", check_real("tangent_tol", self.tangent_tol, positive=True))
         object.__setattr__(self, "project_velocity", check_bool("project_velocity", self.project_velocity))
+
+    def allowance(self, v: NDArray) -> NDArray:
+        """``tangent_tol * max(1, |v|)`` over the last axis of real velocities ``v`` (Euclidean norm): how far off the
+        tangent space a ``v`` may be, in the check's own measure of the deviation, for the hinge-space checks
+        (:func:`linkage.constraints.start_state`, :meth:`manifold.constrained.ConstrainedGeometry.start`)."""
+        return self.tangent_tol * np.maximum(1.0, np.sqrt(np.einsum("...i,...i->...", v, v)))  # np.linalg.norm: 3x slower
 
 
 #: The groups' defaults, shared by every solver's signature: no grid, dense output as the solver keeps it by

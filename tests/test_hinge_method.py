@@ -475,3 +475,108 @@ def test_a_start_the_chain_takes_runs_with_every_method():
     for method in ("hinges", "charts"):
         assert free_motion(chain, h, V[0], 1.0, method=method, start=start).success
     assert free_motions(chain, h[None], V[:1], 1.0, start=start).success.all()
+
+
+def _tilted(chain: Chain, h0: np.ndarray, w0: np.ndarray, k: int, ratio: float) -> np.ndarray:
+    """``w0`` (tangent) plus a K-normal push that changes rod ``k``'s length, sized so that the tangency residual
+    ``max_j l_j |(G w)_j|`` is ``ratio`` times the allowance ``1e-9 max(1, |w|)`` (numpy's measure, start_state's)."""
+    hc = HingeConstraints(chain)
+    x, w = chain.to_point(h0), chain.to_point(w0)
+    d = hc.K_inv @ hc.jacobian(x)[k]  # K^-1 G^T e_k: normal to the tangent space
+    s = 1e-9
+    for _ in range(3):  # the residual is linear in s, the allowance nearly constant: the secant lands on the target
+        s *= ratio * float(StartCheck().allowance(w + s * d)) / float(hc.tangency_residual(x, w + s * d))
+    return chain.from_point(w + s * d)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(3, 6), st.booleans(), st.sampled_from([0.5, 0.9, 1.1, 2.0]))
+def test_the_hinge_path_checks_tangency_once_and_as_start_state_does(seed, n, short_link, ratio):
+    """``free_motion(method="hinges")`` checks its start once, in the compiled call that also projects it, not in
+    numpy first: a velocity pushed off the tangent space to 0.9 of the allowance passes both that check and
+    :func:`start_state`'s; pushed to 1.1 of it, both refuse it, and the refusal is start_state's, naming
+    ``velocity0``.  Short links (1e-3..1e-8, tolerances set by rounding) included."""
+    from linkage.constraints import start_state
+
+    rng = np.random.default_rng(seed)
+    lengths = rng.uniform(0.5, 1.5, n)
+    if short_link:
+        lengths[rng.integers(n - 1)] = 10.0 ** -rng.uniform(3, 8)
+    low = max(0.0, 2 * lengths.max() - lengths.sum())
+    chain = Chain(lengths, low + rng.uniform(0.1, 0.9) * (lengths.sum() - low))
+    h0 = chain.diagonal_space().sample(1, rng).hinges[0]
+    x0 = chain.to_point(h0)
+    v0 = HingeConstraints(chain).project_velocity(x0, rng.uniform(0.1, 3.0) * rng.normal(size=x0.shape))
+    w = _tilted(chain, h0, chain.from_point(v0), int(rng.integers(n)), ratio)
+    T = 1e-3 * lengths.min() / np.abs(v0).max()  # a random velocity whips a short link round at |v| / l: a short run
+    if ratio < 1:
+        start_state(chain, h0, w, T, StartCheck())
+        assert free_motion(chain, h0, w, T, method="hinges").success
+    else:
+        with pytest.raises(ValueError, match="velocity0 is not tangent"):
+            start_state(chain, h0, w, T, StartCheck())
+        with pytest.raises(ValueError, match=r"^velocity0 is not tangent to the configuration space: max_k l_k"):
+            free_motion(chain, h0, w, T, method="hinges")
+        projected = free_motion(chain, h0, w, T, method="hinges", start=StartCheck(project_velocity=True),
+                                save=SaveAt(t_eval=[0.0]))
+        _, _, v_numpy, _ = start_state(chain, h0, w, T, StartCheck(project_velocity=True))
+        assert np.allclose(chain.to_point(projected.velocities[0]), v_numpy, rtol=0, atol=1e-13 * np.abs(v_numpy).max())
+
+
+def test_the_hinge_path_runs_no_numpy_start_check(monkeypatch):
+    """On a good start the hinge path runs neither the chain's closure check nor the numpy tangency check: the
+    compiled start check of the solve is the only one (the issue of a start checked two or three times a solve)."""
+    import linkage.motion
+    from linkage.sampling import sample_starts
+
+    chain = Chain(5, 3.3)
+    H, V = sample_starts(chain, 1, 1.0, np.random.default_rng(3))
+    calls = {"start_state": 0, "check_configuration": 0, "tangency_residual": 0, "ConstrainedGeometry.start": 0}
+
+    def counted(name, f):
+        def wrapper(*args, **kwargs):
+            calls[name] += 1
+            return f(*args, **kwargs)
+        return wrapper
+
+    monkeypatch.setattr(linkage.motion, "start_state", counted("start_state", linkage.motion.start_state))
+    for owner, name in [(Chain, "check_configuration"), (HingeConstraints, "tangency_residual"),
+                        (ConstrainedGeometry, "start")]:
+        monkeypatch.setattr(owner, name, counted(name if owner is not ConstrainedGeometry else f"ConstrainedGeometry.{name}",
+                                                 getattr(owner, name)))
+    assert free_motion(chain, H[0], V[0], 1.0, method="hinges").success
+    assert calls == {"start_state": 0, "check_configuration": 0, "tangency_residual": 0, "ConstrainedGeometry.start": 1}
+    with pytest.raises(ValueError, match="configuration does not close"):  # a refusal in the chain's words
+        free_motion(chain, H[0] * (1 + 1e-6), V[0], 1.0, method="hinges")
+
+
+class _Sphere(ConstrainedSystem):
+    """The sphere ``|x|^2 / 4 - 1 = 0`` of radius 2 in Euclidean ``R^3``."""
+
+    ambient_dim, n_constraints = 3, 1
+    key = ("test sphere of radius 2",)
+    metric_matrix = np.eye(3)
+
+    def constraint_expressions(self, x, p, fp_type):
+        return [(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]) * hy.expression(fp_type(0.25)) - hy.expression(fp_type(1.0))]
+
+
+def test_solve_constrained_checks_tangency_with_a_start_check():
+    """With ``start=StartCheck(...)``, :func:`solve_constrained` checks ``v0`` too: ``(G v)_1 = x . v / 2`` on the
+    sphere of radius 2 (weight 1), refused above ``tangent_tol max(1, |v0|)`` with :class:`StartRefused` naming
+    ``v0``; with ``project_velocity`` the motion is that from the projected velocity; without a check, as before."""
+    from manifold.constrained import StartRefused
+
+    x0 = np.array([1.2, 0.0, 1.6])
+    tangent = np.array([0.0, 1.0, 0.0])
+    v0 = tangent + 1e-7 * x0  # (G v)_1 = x0 . v0 / 2 = 2e-7
+    with pytest.raises(StartRefused, match=r"v0 is not tangent to the constraint manifold: max_k w_k \|\(G v0\)_k\| = "
+                                           r"2e-07 exceeds tangent_tol \* max\(1, \|v0\|\) = 1e-09"):
+        solve_constrained(_Sphere(), x0, v0, 1.0, start=StartCheck())
+    assert solve_constrained(_Sphere(), x0, v0, 1.0, start=StartCheck(tangent_tol=3e-7)).success
+    assert solve_constrained(_Sphere(), x0, v0, 1.0).success  # no check: the projection takes it
+    a = solve_constrained(_Sphere(), x0, v0, 2.0, start=StartCheck(project_velocity=True))
+    b = solve_constrained(_Sphere(), x0, tangent, 2.0)  # the K-orthogonal projection of v0 (x0 . tangent = 0)
+    assert np.allclose(a(2.0)[0], b(2.0)[0], rtol=0, atol=1e-14)
+    # a great circle of radius 2 at speed 1: the angle 2.0 / 2 turned from x0 towards tangent
+    assert np.allclose(a(2.0)[0], np.cos(1.0) * x0 + 2 * np.sin(1.0) * tangent, rtol=0, atol=1e-13)

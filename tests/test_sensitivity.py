@@ -82,21 +82,21 @@ def test_the_start_is_checked_once_and_by_the_tangent_tolerance_given(monkeypatc
     """One ``start_state`` and one closure check per call; ``StartCheck.tangent_tol`` reaches that one check: a velocity
     tilted off the tangent space by 1e-7 of its size is refused by default (1e-9) and accepted at 1e-6."""
     h0, v0 = _start()
-    calls = {"start_state": 0, "check_one_configuration": 0}
-    start_state, check = linkage.geometry.start_state, Chain.check_one_configuration
+    calls = {"start_state": 0, "check_configuration": 0}
+    start_state, check = linkage.geometry.start_state, Chain.check_configuration
 
     def counted_start_state(*args, **kwargs):
         calls["start_state"] += 1
         return start_state(*args, **kwargs)
 
     def counted_check(self, *args, **kwargs):
-        calls["check_one_configuration"] += 1
+        calls["check_configuration"] += 1
         return check(self, *args, **kwargs)
 
     monkeypatch.setattr(linkage.geometry, "start_state", counted_start_state)
-    monkeypatch.setattr(Chain, "check_one_configuration", counted_check)
+    monkeypatch.setattr(Chain, "check_configuration", counted_check)
     sensitivity(CHAIN, h0, v0, 0.1)
-    assert calls == {"start_state": 1, "check_one_configuration": 1}
+    assert calls == {"start_state": 1, "check_configuration": 1}
     x0 = CHAIN.to_point(h0)
     normal = np.linalg.lstsq(HingeConstraints(CHAIN).jacobian(x0), np.ones(CHAIN.n), rcond=None)[0]  # G w != 0
     tilted = v0 + 1e-7 * np.linalg.norm(CHAIN.to_point(v0)) * CHAIN.from_point(normal / np.linalg.norm(normal))
