@@ -12,7 +12,9 @@ start and with its damping rate:
 Ours: ``free_motion(method="hinges")`` and ``free_motion(method="charts")`` (its default stepper),
 each as a user calls it (start check, compile fetched from the cache, ``t_eval``, no dense output).
 ``--compile-modes`` adds the hinges with heyoka's compact mode forced on and off (``compact_mode=True`` /
-``False``), each against DOP853: what the default compile option (``default_compact_mode``) gains or loses.
+``False``), each against DOP853: what the default compile option (``default_compact_mode``) gains or loses; and
+the charts' default stepper compiled unrolled (``SundmanStepper(..., compact_mode=False)``: the charts are compact
+by default, for the compile's sake), against DOP853.
 
 Conditions (the same for every row): a generic unit-energy start (``generic_start``:
 ``L = n - 1.3``, unit hinge masses), T = 20, the state at 101 equally spaced times; the error of a
@@ -49,7 +51,11 @@ import scipy
 from scipy.integrate import solve_ivp
 
 from linkage import Chain
+from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
+from linkage.time_factor import ChainTimeFactor
+from manifold.ambient_velocity import ConstrainedVelocity
+from manifold.sundman import SundmanStepper
 
 from .study.experiments import generic_start
 from .study.report import PEERS_SECTION, replace_section
@@ -65,7 +71,11 @@ TARGETS: tuple[float | None, ...] = (1e-8, 1e-10, None)
 PAIRS = (("hinges", "DOP853"), ("hinges", "diffrax"), ("charts", "DOP853"), ("hinges", "charts"))
 #: The hinges with the compile option forced (``--compile-modes``): row name -> ``compact_mode``.
 COMPILE_MODES = {"compact": True, "unrolled": False}
-MODE_PAIRS = tuple((mode, "DOP853") for mode in COMPILE_MODES)
+#: The charts' default stepper compiled unrolled (``--compile-modes``), at the tolerances around the error 1e-10 only:
+#: each tolerance is a compile of its own, 75-82 s of CPU at n = 8.
+CHARTS_UNROLLED = "charts unrolled"
+UNROLLED_CHART_TOLS = (1e-8, 1e-10, 1e-12)
+MODE_PAIRS = tuple((mode, "DOP853") for mode in (*COMPILE_MODES, CHARTS_UNROLLED))
 SECTION = PEERS_SECTION
 
 
@@ -118,8 +128,16 @@ def reference(pb: Problem, fp_type: Any) -> np.ndarray:
 
 def ours(pb: Problem, method: str, tol: float | None,
          compact_mode: bool | None = None) -> Callable[[], tuple[np.ndarray, int]]:
-    """``free_motion(method=...)``; ``compact_mode`` (hinges only) forced if not ``None``."""
-    options = {} if compact_mode is None else {"compact_mode": compact_mode}
+    """``free_motion(method=...)``; ``compact_mode`` forced if not ``None`` (the charts: their default stepper,
+    Sundman's time with the state ``(a, J c)``, given with it)."""
+    if compact_mode is None:
+        options: dict[str, Any] = {}
+    elif method == "hinges":
+        options = {"compact_mode": compact_mode}
+    else:  # the stepper holds the tolerance
+        options = {"stepper": SundmanStepper(ChainTimeFactor(pb.chain), tol=tol, compact_mode=compact_mode,
+                                             velocity=ConstrainedVelocity(ChainSystem(pb.chain)))}
+        tol = None
 
     def run() -> tuple[np.ndarray, int]:
         m = free_motion(pb.chain, pb.h0, pb.w0, pb.T, method=method, save=SaveAt(t_eval=pb.ts, dense=False),
@@ -210,6 +228,8 @@ def measure(pb: Problem, ref: np.ndarray, peers: dict[str, Any], rounds: int, ch
                  for tol in OUR_TOLS]
     if charts:
         jobs += [(Row("charts", tol), ours(pb, "charts", tol)) for tol in CHART_TOLS]
+    if charts and modes:
+        jobs += [(Row(CHARTS_UNROLLED, tol), ours(pb, "charts", tol, False)) for tol in UNROLLED_CHART_TOLS]
     for name, build in (("DOP853", dop853), ("diffrax", diffrax_dopri8)):
         if not isinstance(peers[name], str):
             at = build(pb, peers[name])
@@ -325,7 +345,9 @@ def render(results: dict[int, dict], peers: dict[str, Any], T: float, rounds: in
              "Hinges and charts are `free_motion(method=...)` with their default steppers; the column \"hinges vs "
              "charts\" is the charts' time over the hinges' (at 1e-8 / 1e-10 / the charts' best error). "
              + ("The columns \"compact\" and \"unrolled\" are the hinges with heyoka's compact mode forced on and "
-                "off (`compact_mode=True` / `False`) against DOP853. " if modes else "")
+                "off (`compact_mode=True` / `False`) against DOP853; \"charts unrolled\" is the charts' default stepper "
+                "compiled unrolled (`SundmanStepper(..., compact_mode=False)`, tolerances 1e-8, 1e-10, 1e-12) against "
+                "DOP853. " if modes else "")
              + ", ".join(versions) + ".", "",
              "| n | hinges vs DOP853 | hinges vs diffrax | charts vs DOP853 | hinges vs charts | "
              + "".join(f"{mode} vs DOP853 | " for mode, _ in (MODE_PAIRS if modes else ()))
