@@ -165,6 +165,29 @@ def _default_velocity(chain: Chain, kwargs: dict) -> ConstrainedVelocity | None:
     return ConstrainedVelocity(ChainSystem(chain))
 
 
+def _hinge_solve(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float, start: StartCheck,
+                 **options: Any) -> GeodesicSolution:
+    """:func:`free_motion`'s hinge method: the start checked once, in the compiled call that projects it
+    (:func:`~linkage.constraints.start_arguments` in numpy before it), a refusal reported by
+    :func:`~linkage.constraints.start_state` in the chain's terms; a velocity to be projected
+    (``start.project_velocity``) goes through ``start_state`` itself."""
+    start = check_group("start", start, StartCheck)
+    system, metric = chain_system(chain), chart_metric(chain)
+    if start.project_velocity:
+        # start_state projects twice: one compiled pass leaves ~cond(G) eps of a large normal part, and a push of
+        # 1e6 |v| off the tangent space then failed the energy check near the top of the range
+        _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
+        return solve_constrained(system, x0, v0, t_final, metric=metric, **options)
+    h0, w0, t_final = start_arguments(chain, hinges0, velocity0, t_final)
+    try:
+        return solve_constrained(system, h0.view(float), w0.view(float), t_final, metric=metric, start=start,
+                                 **options)
+    except StartRefused as refused:
+        start_state(chain, hinges0, velocity0, t_final, start)  # the refusal in the chain's terms, naming hinges0
+        raise ValueError(f"the start lies within rounding of a tolerance of the start check, which the hinge "
+                         f"solver's compiled check refuses: {refused}") from None
+
+
 #: Options often written for the tolerance, ``precision=Precision(tol=...)`` (scipy's names).
 _TOLERANCE_ALIASES = ("rtol", "atol", "tolerance")
 
@@ -305,16 +328,8 @@ def free_motion(
         method = choose_method(chain, kwargs)
     _check_options(method, kwargs)
     if method == "hinges":
-        h0, w0, t_final = start_arguments(chain, hinges0, velocity0, t_final)
-        try:  # closure and tangency checked in the compiled call that projects the start (one check of the start)
-            solution = solve_constrained(chain_system(chain), h0.view(float), w0.view(float), t_final,
-                                         precision=precision, save=save, metric=chart_metric(chain), progress=progress,
-                                         start=start, **kwargs)
-        except StartRefused as refused:
-            start_state(chain, hinges0, velocity0, t_final, start)  # the refusal in the chain's terms, naming hinges0
-            raise ValueError(f"the start lies within rounding of a tolerance of the start check, which the hinge "
-                             f"solver's compiled check refuses: {refused}") from None
-        return ChainMotion(chain, solution)
+        return ChainMotion(chain, _hinge_solve(chain, hinges0, velocity0, t_final, start, precision=precision,
+                                               save=save, progress=progress, **kwargs))
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
     # velocity0 is tangent to start.tangent_tol (checked above): the chart solver's projection only removes rounding
     if kwargs.get("stepper") is None:  # Sundman's time: 13-44 % fewer steps (docs/methods.md)

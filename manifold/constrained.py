@@ -996,7 +996,9 @@ def solve_constrained(
         A :class:`~manifold.options.StartCheck` ``(tangent_tol, project_velocity)``: ``v0`` is also checked for
         tangency, ``max_k w_k |(G v0)_k| <= tangent_tol * max(1, |v0|)`` (:attr:`ConstrainedSystem.tangency_weights`),
         from the same compiled call as the closure check and the projection, and refused unless
-        ``project_velocity`` (then projected); ``None`` (default): the caller has checked it.
+        ``project_velocity`` (then projected, in one pass: a normal part much larger than ``v0``'s tangent one
+        leaves about ``cond(G) eps`` of itself, so project such a velocity first); ``None`` (default): the caller
+        has checked it.
 
     Returns
     -------
