@@ -20,8 +20,8 @@ from numpy.typing import ArrayLike, NDArray
 from manifold.constrained_batch import solve_constrained_ensemble
 from manifold.ensemble import EnsembleSolution, chunk_bounds, default_chunk_size, run_chunks
 from manifold.interrupt import SolveInterrupted
-from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, Precision, SaveAt, StartCheck,
-                              check_group, refuse_moved_options)
+from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, PROJECTED_START, Precision, SaveAt,
+                              StartCheck, check_group, refuse_moved_options)
 from manifold.progress import ProgressArgument
 from manifold.solution import GeodesicSolution, SolveStatus
 from manifold.validation import check_positive_int
@@ -240,8 +240,10 @@ def solve_motion_chunk(chain: Chain, X0: NDArray, V0: NDArray, t_final: float, g
     def solve(x: NDArray, v: NDArray) -> GeodesicSolution:
         # progress=False: the ensemble reports per chunk; single solves inside it stay silent
         try:
+            # start=PROJECTED_START: free_motions checked the starts with the user's StartCheck (a default one here
+            # refused a velocity that tangent_tol=1e-6 had taken); the projection only removes rounding
             return free_motion(chain, chain.from_point(x), chain.from_point(v), t_final, method=method, save=save,
-                               throw=False, progress=False, **options).solution
+                               start=PROJECTED_START, throw=False, progress=False, **options).solution
         except SolveInterrupted as e:  # Ctrl-C: the partial result, and the ensemble raises it (map_chunks)
             return e.result
 

@@ -358,3 +358,30 @@ def test_projected_starts_match_single_calls():
     assert _max_gap(ens, singles) <= 1e-12
     assert np.abs(ens.velocities[[0, 2, 4], 0] - V[[0, 2, 4]]).max() <= 1e-15  # tangent rows are left alone
     assert np.abs(ens.velocities[[1, 3], 0] - W[[1, 3]]).max() > 0.01
+
+
+@pytest.mark.parametrize("options", [{"method": "charts"}, {"precision": "longdouble"}])
+def test_single_solves_take_the_starts_as_the_ensembles_check_took_them(options):
+    """An ensemble that runs single solves (the charts, long double) takes the starts as ``free_motions`` checked
+    them, with the user's ``StartCheck``: a velocity 1e-7 off the tangent space passes ``tangent_tol=1e-6`` and
+    runs; each single solve checked it again at the default 1e-9 and refused it."""
+    from linkage.constraints import HingeConstraints
+    from manifold import Precision
+
+    chain = Chain(4, 2.6)
+    rng = np.random.default_rng(5)
+    h0 = chain.diagonal_space().sample(2, rng).hinges
+    hc = HingeConstraints(chain)
+    X = chain.to_point(h0)
+    V = np.array([hc.project_velocity(x, rng.normal(size=x.shape)) for x in X])
+    V /= np.linalg.norm(V, axis=1)[:, None]
+    normal = np.array([hc.K_inv @ hc.jacobian(x).T @ np.ones(4) for x in X])
+    W = chain.from_point(V + 1e-7 * normal / np.linalg.norm(normal, axis=1)[:, None])
+    kw = {k: (Precision(fp_type=v) if k == "precision" else v) for k, v in options.items()}
+    with pytest.raises(ValueError, match="not tangent"):
+        free_motions(chain, h0, W, 0.5, **kw)
+    save = SaveAt(t_eval=[0.5])
+    out = free_motions(chain, h0, W, 0.5, start=StartCheck(tangent_tol=1e-6), save=save, **kw)
+    assert out.success.all()
+    ref = free_motions(chain, h0, chain.from_point(V), 0.5, save=save, **kw)  # the tangent part alone: the same motion
+    assert np.abs(out.hinges[:, -1] - ref.hinges[:, -1]).max() <= 1e-6
