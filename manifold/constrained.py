@@ -73,10 +73,10 @@ __all__ = ["STABILISATIONS", "CompiledConstrained", "ConstrainedGeometry", "Cons
 Expr: TypeAlias = hy.expression
 #: How drift off the constraints is held back (see the module docstring).
 STABILISATIONS = ("baumgarte", "projection", "none")
-#: Largest ambient dimension integrated with unrolled (non-compact) code by default, in float64 (``N = 14``: a chain
-#: of 8 rods) and in long double (``N = 8``: 5 rods), whose unrolled code compiles 3-4x slower; see
+#: Largest ambient dimension integrated with unrolled (non-compact) code by default, in float64 (``N = 22``: a chain
+#: of 12 rods) and in long double (``N = 8``: 5 rods), whose unrolled code compiles 3-4x slower; see
 #: :func:`default_compact_mode`.
-UNROLL_MAX_DIM = {"float64": 14, "long double": 8}
+UNROLL_MAX_DIM = {"float64": 22, "long double": 8}
 #: A start farther than this from ``c = 0`` (``max_k |c_k|``) is refused rather than moved, unless a constraint's
 #: rounding floor (:meth:`ConstrainedGeometry.floors`) times :data:`START_ROUNDING_MARGIN` is larger.
 START_CONSTRAINT_TOLERANCE = 1e-9
@@ -851,13 +851,13 @@ def damping_rate(scale: float, rate: float, energy: Any, direction: float) -> An
 
 def default_compact_mode(system: ConstrainedSystem, fp_type: Any) -> bool:
     """heyoka's compact mode by default, chosen by measurement: off (unrolled code) up to ``N =``
-    :data:`UNROLL_MAX_DIM` (14 in float64, 8 in long double), on beyond and for software floating types.
+    :data:`UNROLL_MAX_DIM` (22 in float64, 8 in long double), on beyond and for software floating types.
 
     Unrolled code steps 1.5-2.2x faster (float64, n = 4..12; long double 1.8-2.0x) and its cold compile grows
-    about linearly with ``n``: in float64 5-8 s of CPU at n = 6 and 9-14 s at n = 8 (a SIMD batch alike),
-    paid once per machine, since heyoka keeps the code in its disk cache and loads it from there in 0.05-0.25 s;
-    beyond n = 8 it costs 12-22 s for the same gain.  Long double compiles 3-5x slower (12-13 s at n = 4, 30 s
-    at n = 6), so it unrolls only to n = 5.  In real128 and multiprecision the software arithmetic dominates the
+    about linearly with ``n``: in float64 6-9 s of CPU at n = 8, 11 s at n = 10 and 15 s at n = 12 (a SIMD batch
+    15 s at n = 10 and 12), paid once per machine, since heyoka keeps the code in its disk cache and loads it from
+    there in 0.05-0.25 s; at n = 10 and 12 it made a T = 20 call 1.7-1.8x faster.  Long double compiles 3-5x
+    slower (12-13 s at n = 4, 30 s at n = 6), so it unrolls only to n = 5.  In real128 and multiprecision the software arithmetic dominates the
     step and unrolled code only costs compile time (at 150 bits it exhausted memory).  docs/methods.md,
     "Compile options", has the measurements.
     """
@@ -964,8 +964,8 @@ def solve_constrained(
         Time between projections for ``"projection"``, ``> 0``.
     compact_mode
         heyoka's compact mode; ``None`` (default) chooses by measurement (:func:`default_compact_mode`;
-        docs/methods.md, "Compile options"): unrolled code up to ``N = 14`` (a chain of 8 rods) in float64 and
-        ``N = 8`` (5 rods) in long double, where it steps 1.5-2.2x faster for a cold compile of 2-14 s of CPU
+        docs/methods.md, "Compile options"): unrolled code up to ``N = 22`` (a chain of 12 rods) in float64 and
+        ``N = 8`` (5 rods) in long double, where it steps 1.5-2.2x faster for a cold compile of 2-15 s of CPU
         in float64 (12-13 s in long double at n = 4) paid once per machine (heyoka keeps it in its disk cache);
         compact beyond, for real128 and :class:`~manifold.precision.MultiPrecision`, whose software arithmetic
         dominates the step, and with terms carried (``carry``; a Jacobi field at n = 4 took 52 s to compile
