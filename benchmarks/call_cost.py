@@ -13,8 +13,8 @@ For ``method="hinges"`` at n = 4 (and ``--n``), CPU time of this process, the fa
 * a T = 20 call sampling 101 times (``SaveAt(t_eval=..., dense=False)``), at the default tolerance and at
   1e-10, against heyoka's bare ``propagate_grid`` on the same integrator and times;
 * the bytes of dense output per Taylor step (T = 10);
-* with ``--breakdown``: the pieces of a one-step call (the start's arguments, the start's compiled check and projection, the geometry
-  call that checks the step, the Ctrl-C block, heyoka's step), each timed alone.
+* with ``--breakdown``: the pieces of a one-step call (the start's arguments, the start's compiled check and
+  projection, the geometry call that checks the step, the Ctrl-C block, heyoka's step), each timed alone.
 
 ``--baseline DIR`` measures another checkout of the library (``DIR`` on ``PYTHONPATH``) in a
 subprocess, alternating with this one round by round, and prints both side by side: before and

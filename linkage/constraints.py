@@ -54,7 +54,8 @@ from manifold.validation import check_real
 from . import rods
 from .chain import START_CLOSURE_TOLERANCE, Chain
 
-__all__ = ["ChainSystem", "chain_system", "HingeConstraints", "HingeStart", "start_arguments", "start_state", "start_states"]
+__all__ = ["ChainSystem", "chain_system", "HingeConstraints", "HingeStart", "start_arguments", "start_state",
+           "start_states"]
 
 #: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
 _PROJECTION_STEPS = 8
@@ -320,7 +321,8 @@ class HingeStart(NamedTuple):
     t_final: float
 
 
-def start_arguments(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final: float) -> tuple[NDArray, NDArray, float]:
+def start_arguments(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike,
+                    t_final: float) -> tuple[NDArray, NDArray, float]:
     """The start of a hinge-space integration with what needs no constraint checked: generic lengths
     (:meth:`Chain.check_generic`), one configuration and one velocity of ``n - 1`` finite complex hinges each, and
     ``t_final`` finite and nonzero (:func:`manifold.validation.check_real`).

@@ -169,19 +169,11 @@ def _hinge_solve(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final
                  **options: Any) -> GeodesicSolution:
     """:func:`free_motion`'s hinge method: the start checked once, in the compiled call that projects it
     (:func:`~linkage.constraints.start_arguments` in numpy before it), a refusal reported by
-    :func:`~linkage.constraints.start_state` in the chain's terms; a velocity to be projected
-    (``start.project_velocity``) goes through ``start_state`` itself."""
-    start = check_group("start", start, StartCheck)
-    system, metric = chain_system(chain), chart_metric(chain)
-    if start.project_velocity:
-        # start_state projects twice: one compiled pass leaves ~cond(G) eps of a large normal part, and a push of
-        # 1e6 |v| off the tangent space then failed the energy check near the top of the range
-        _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
-        return solve_constrained(system, x0, v0, t_final, metric=metric, **options)
+    :func:`~linkage.constraints.start_state` in the chain's terms."""
     h0, w0, t_final = start_arguments(chain, hinges0, velocity0, t_final)
     try:
-        return solve_constrained(system, h0.view(float), w0.view(float), t_final, metric=metric, start=start,
-                                 **options)
+        return solve_constrained(chain_system(chain), h0.view(float), w0.view(float), t_final,
+                                 metric=chart_metric(chain), start=start, **options)
     except StartRefused as refused:
         start_state(chain, hinges0, velocity0, t_final, start)  # the refusal in the chain's terms, naming hinges0
         raise ValueError(f"the start lies within rounding of a tolerance of the start check, which the hinge "

@@ -803,14 +803,19 @@ class ConstrainedGeometry:
             j = int(np.argmax(~(c0[k] <= self.start_tolerances)))
             raise StartRefused(f"{name(k)} is not on the constraint manifold: |c_{j}(x0)| = {c0[k, j]:.3g} exceeds "
                                f"{self.start_tolerances[j]:.3g}")
-        if check is not None and not check.project_velocity:
+        off = np.zeros(len(x0), dtype=bool)  # rows whose v0 is off the tangent space beyond the check's allowance
+        if check is not None:
             residual = (np.abs(projected[1].astype(float)) * self.tangency_weights).max(axis=1, initial=0.0)
-            allowed = check.allowance(v0)
-            if not (residual <= allowed).all():
-                k = int(np.argmax(~(residual <= allowed)))
+            off = ~(residual <= check.allowance(v0))
+            if off.any() and not check.project_velocity:
+                k = int(np.argmax(off))
                 raise StartRefused(f"{name(k, 'v0')} is not tangent to the constraint manifold: max_k w_k |(G v0)_k| = "
-                                   f"{residual[k]:.3g} exceeds tangent_tol * max(1, |v0|) = {allowed[k]:.3g}")
+                                   f"{residual[k]:.3g} exceeds tangent_tol * max(1, |v0|) = {check.allowance(v0[k]):.3g}")
         x, v, E0 = self._projected(x, v, projected, c0)
+        if off.any():
+            # a second pass: one leaves ~cond(G) eps of a large normal part, which Baumgarte's term turned into an
+            # energy error 700x its bound (a push of 1e6 |v| off the tangent space, L = 4 - 1e-6)
+            _, _, v[off], E0[off] = self.projection(x[off], v[off])
         E0f = np.array([float(e) for e in E0])
         if not np.isfinite(E0f).all():
             k = int(np.argmax(~np.isfinite(E0f)))
@@ -857,9 +862,9 @@ def default_compact_mode(system: ConstrainedSystem, fp_type: Any) -> bool:
     about linearly with ``n``: in float64 6-9 s of CPU at n = 8, 11 s at n = 10 and 15 s at n = 12 (a SIMD batch
     15 s at n = 10 and 12), paid once per machine, since heyoka keeps the code in its disk cache and loads it from
     there in 0.05-0.25 s; at n = 10 and 12 it made a T = 20 call 1.7-1.8x faster.  Long double compiles 3-5x
-    slower (12-13 s at n = 4, 30 s at n = 6), so it unrolls only to n = 5.  In real128 and multiprecision the software arithmetic dominates the
-    step and unrolled code only costs compile time (at 150 bits it exhausted memory).  docs/methods.md,
-    "Compile options", has the measurements.
+    slower (12-13 s at n = 4, 30 s at n = 6), so it unrolls only to n = 5.  In real128 and multiprecision the
+    software arithmetic dominates the step and unrolled code only costs compile time (at 150 bits it exhausted
+    memory).  docs/methods.md, "Compile options", has the measurements.
     """
     if is_double(fp_type):
         return system.ambient_dim > UNROLL_MAX_DIM["float64"]
@@ -996,9 +1001,8 @@ def solve_constrained(
         A :class:`~manifold.options.StartCheck` ``(tangent_tol, project_velocity)``: ``v0`` is also checked for
         tangency, ``max_k w_k |(G v0)_k| <= tangent_tol * max(1, |v0|)`` (:attr:`ConstrainedSystem.tangency_weights`),
         from the same compiled call as the closure check and the projection, and refused unless
-        ``project_velocity`` (then projected, in one pass: a normal part much larger than ``v0``'s tangent one
-        leaves about ``cond(G) eps`` of itself, so project such a velocity first); ``None`` (default): the caller
-        has checked it.
+        ``project_velocity`` (then projected K-orthogonally, in a second pass where it failed the check);
+        ``None`` (default): the caller has checked it.
 
     Returns
     -------
