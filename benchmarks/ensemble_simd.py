@@ -51,7 +51,7 @@ import numpy as np
 from linkage import Chain
 from linkage.constraints import ChainSystem, start_states
 from linkage.motion import free_motion, free_motions
-from manifold import SaveAt
+from manifold import SaveAt, StartCheck
 from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
 from manifold.constrained_batch import DEFAULT_WIDTHS
 
@@ -61,7 +61,7 @@ from .ensemble_speed import starts
 def bare(chain: Chain, H: np.ndarray, V: np.ndarray, T: float, lanes: int) -> Callable[[], np.ndarray]:
     """heyoka alone on the compiled equations of ``free_motions``: ``lanes`` per integrator (1: scalar)."""
     system = ChainSystem(chain)
-    _, X0, V0, _ = start_states(chain, H, V, T, 1e-9, False)
+    _, X0, V0, _ = start_states(chain, H, V, T, StartCheck())
     geo = ConstrainedGeometry(system, float)
     X, W, _, alpha = geo.start(X0, V0, T, 1.0)
     comp = compiled_constrained(system)
