@@ -55,7 +55,8 @@ def start(n: int, seed: int = 0, chain=None):
 
 def bare(chain, h0, w0, T: float | np.ndarray, tol: float | None = None):
     """``run()``: heyoka's ``propagate_until(T)`` on the hinge method's own integrator (at ``tol``), state and
-    parameters; ``propagate_grid(T)`` if ``T`` is an array of times."""
+    parameters, returning the end state; ``propagate_grid(T)`` if ``T`` is an array of times, returning the states
+    at those times."""
     from linkage.constraints import ChainSystem
     from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
 
@@ -66,15 +67,15 @@ def bare(chain, h0, w0, T: float | np.ndarray, tol: float | None = None):
     y0 = np.concatenate([xs[0], vs[0]])
     pars = comp.layout.pack(system, float(alphas[0]), float)
 
-    def run() -> None:
+    def run() -> np.ndarray:
         with comp.integrator(float, tol, True, default_compact_mode(system, float)) as ta:
             ta.state[:] = y0
             ta.time = 0.0
             ta.pars[:] = pars[: len(ta.pars)]
             if isinstance(T, np.ndarray):
-                ta.propagate_grid(T)
-            else:
-                ta.propagate_until(T)
+                return ta.propagate_grid(T)[-1]
+            ta.propagate_until(T)
+            return ta.state.copy()
 
     return run
 

@@ -118,7 +118,9 @@ def gil_free_share(run: Callable[[], object]) -> float:
     return busy / idle
 
 
-def measure(n: int, count: int, T: float, rounds: int) -> dict[str, float]:
+def measure(n: int, count: int, T: float, rounds: int) -> tuple[dict[str, float], dict[str, float]]:
+    """Prints and returns ``(best, gaps)``: each row's least time (seconds) and the largest distance of its end
+    points from the loop of single solves'."""
     chain = Chain(n, n - 1.4)
     H, V = starts(chain, count)
     width = hy.recommended_simd_size()
@@ -144,10 +146,10 @@ def measure(n: int, count: int, T: float, rounds: int) -> dict[str, float]:
     reference = ends["free_motion loop"]
     floor = best["bare batch"]
     print(f"n = {n}: {count} starts, T = {T:g}, {lanes} lanes (SIMD width {width}), compact mode {compact}")
+    gaps = {name: float(np.max(np.abs(ends[name] - reference))) for name in rows}
     print(f"  {'':22s} {'time ms':>9s} {'bare batch / it':>16s} {'it / bare batch':>16s}  max |x - loop|")
     for name in rows:
-        gap = float(np.max(np.abs(ends[name] - reference)))
-        print(f"  {name:22s} {1e3 * best[name]:9.2f} {floor / best[name]:16.2f} {best[name] / floor:16.2f}  {gap:.1e}")
+        print(f"  {name:22s} {1e3 * best[name]:9.2f} {floor / best[name]:16.2f} {best[name] / floor:16.2f}  {gaps[name]:.1e}")
     serial = best["free_motions serial"]
     at_width = f" ({best['bare batch, width'] / serial:.2f}x at the SIMD width)" if "bare batch, width" in best else ""
     print(f"  free_motions serial: {floor / serial:.2f}x bare batch{at_width} (target >= 0.8); "
@@ -156,7 +158,7 @@ def measure(n: int, count: int, T: float, rounds: int) -> dict[str, float]:
           f"threads on {len(os.sched_getaffinity(0))} cores: {serial / best['free_motions threads']:.2f}x serial (wall)")
     share = gil_free_share(lambda: free_motions(chain, H, V, 10 * T))
     print(f"  GIL free for another thread during free_motions serial at T = {10 * T:g}: {share:.2f} of the idle rate")
-    return best
+    return best, gaps
 
 
 def widths(n: int, count: int, T: float, rounds: int, compact: bool) -> dict[int, float]:
