@@ -59,7 +59,10 @@ class Jet:
             return Jet(_add(self.v, o), self.g, self.d1, self.d2)
         return Jet(_add(self.v, o.v), [_add(x, y) for x, y in zip(self.g, o.g)], _add(self.d1, o.d1), _add(self.d2, o.d2))
 
-    __radd__ = __add__
+    # the reflected operators keep the plain operand on the left, as plain code builds it: heyoka's common
+    # subexpressions are structural, and ``v * o`` beside a plain ``o * v`` was computed twice
+    def __radd__(self, o: Any) -> "Jet":
+        return Jet(_add(o, self.v), self.g, self.d1, self.d2)
 
     def __neg__(self) -> "Jet":
         return Jet(_neg(self.v), [_neg(x) for x in self.g], _neg(self.d1), _neg(self.d2))
@@ -82,7 +85,8 @@ class Jet:
             _add(_mul(self.d2, o.v), _mul(2.0, _mul(self.d1, o.d1)), _mul(self.v, o.d2)),
         )
 
-    __rmul__ = __mul__
+    def __rmul__(self, o: Any) -> "Jet":
+        return Jet(_mul(o, self.v), [_mul(o, x) for x in self.g], _mul(o, self.d1), _mul(o, self.d2))
 
     def reciprocal(self) -> "Jet":
         """``1/x``: derivatives ``-1/x^2`` and ``2/x^3``."""
