@@ -17,7 +17,6 @@ process, so the columns compare.
 """
 
 from __future__ import annotations
-from manifold import SaveAt
 
 import argparse
 
@@ -25,6 +24,7 @@ import numpy as np
 
 from linkage import Chain
 from linkage.motion import free_motion
+from manifold import SaveAt
 
 from .starts import chart_start
 

@@ -60,7 +60,6 @@ Run ``python -m benchmarks.energy_growth [--quick] [--long]``.  Prints:
 """
 
 from __future__ import annotations
-from manifold import Precision, SaveAt
 
 import argparse
 import time
@@ -74,6 +73,7 @@ from linkage import Chain
 from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
+from manifold import Precision, SaveAt
 from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper

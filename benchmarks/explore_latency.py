@@ -8,7 +8,6 @@ each and their ratio, for both methods.
 """
 
 from __future__ import annotations
-from manifold import SaveAt
 
 import argparse
 import statistics
@@ -22,6 +21,7 @@ from linkage.explore.cli import serve_in_thread
 from linkage.explore.protocol import as_pairs
 from linkage.motion import free_motion
 from linkage.sampling import sample_starts
+from manifold import SaveAt
 
 
 def main() -> None:

@@ -9,7 +9,6 @@ refused start, failed own check) and the worst energy error among successes.
 """
 
 from __future__ import annotations
-from manifold import SaveAt
 
 import argparse
 import collections
@@ -19,6 +18,7 @@ import numpy as np
 
 from linkage import Chain
 from linkage.motion import free_motion
+from manifold import SaveAt
 
 from .starts import chart_start
 

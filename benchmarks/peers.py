@@ -35,7 +35,6 @@ installed is reported as such and its column left empty.
 """
 
 from __future__ import annotations
-from manifold import Precision, SaveAt
 
 import argparse
 import platform
@@ -54,6 +53,7 @@ from linkage import Chain
 from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
+from manifold import Precision, SaveAt
 from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.sundman import SundmanStepper
 

@@ -6,7 +6,6 @@ answering; 50 concurrent T = 10 motions are answered by a real uvicorn server.
 """
 
 from __future__ import annotations
-from manifold import Precision, SaveAt
 
 import asyncio
 import json
@@ -27,6 +26,7 @@ from linkage.explore.cli import serve_in_thread
 from linkage.explore.protocol import Cancelled, Limits, as_pairs, motion_request, solve_motion
 from linkage.motion import free_motion
 from linkage.sampling import sample_starts
+from manifold import Precision, SaveAt
 
 
 CHAIN = Chain(4, 3.0)

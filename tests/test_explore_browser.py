@@ -12,7 +12,6 @@ environment variable ``CI`` set), where a missing browser is a failure.
 """
 
 from __future__ import annotations
-from manifold import SaveAt
 
 import os
 import shutil
@@ -27,6 +26,7 @@ from linkage import Chain
 from linkage.explore.cli import serve_in_thread
 from linkage.explore.protocol import as_pairs
 from linkage.motion import free_motion
+from manifold import SaveAt
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

@@ -1,7 +1,6 @@
 """motion.to_html: one self-contained file that replays a motion (the browser side is in test_explore_browser)."""
 
 from __future__ import annotations
-from manifold import SaveAt
 
 import base64
 import json
@@ -14,6 +13,7 @@ import pytest
 from linkage import Chain
 from linkage.explore.replay import STATIC
 from linkage.motion import free_motion
+from manifold import SaveAt
 
 
 @pytest.fixture(scope="module")

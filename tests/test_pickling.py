@@ -6,7 +6,6 @@ and then round-trips all of them.
 """
 
 from __future__ import annotations
-from manifold import SaveAt
 
 import pickle
 
@@ -15,6 +14,7 @@ import numpy as np
 from linkage import Chain, geometry
 from linkage.motion import free_motion, free_motions, lyapunov_exponent
 from linkage.sampling import sample_starts
+from manifold import SaveAt
 
 
 def _round_trip(*objects):

@@ -2,7 +2,6 @@
 it implies, against finite differences of whole solves and against two methods' disagreement."""
 
 from __future__ import annotations
-from manifold import SaveAt, StartCheck
 
 import warnings
 
@@ -16,6 +15,7 @@ from linkage.geometry import tangent_basis
 from linkage.motion import free_motion
 from linkage.sampling import sample_starts
 from linkage.sensitivity import SensitivityWarning, sensitivity
+from manifold import SaveAt, StartCheck
 
 CHAIN = Chain(4, 3.1, hinge_masses=[0.5, 2.0, 1.0])
 T = 4.0
