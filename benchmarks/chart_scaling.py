@@ -27,8 +27,8 @@ import numpy as np
 from linkage import Chain
 from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
-from manifold.ambient_velocity import ConstrainedVelocity
 from manifold import SaveAt
+from manifold.ambient_velocity import ConstrainedVelocity
 from manifold.compiled import compiled
 
 from .starts import chart_start

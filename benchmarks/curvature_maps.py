@@ -31,8 +31,8 @@ from charts import RoundSphereProposal  # noqa: E402
 from linkage import Chain  # noqa: E402
 from linkage.motion import free_motion  # noqa: E402
 from linkage.sampling import sample_configurations, sample_starts  # noqa: E402
-from manifold.sampling import BoxProposal, sample_volume  # noqa: E402
 from manifold import SaveAt
+from manifold.sampling import BoxProposal, sample_volume  # noqa: E402
 
 FIGURES = Path(__file__).resolve().parent.parent / "docs" / "figures"
 LENGTHS = (2.05, 2.3, 2.8, 3.4, 3.9)

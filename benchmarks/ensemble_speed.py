@@ -35,8 +35,8 @@ import numpy as np
 
 from linkage import Chain
 from linkage.motion import free_motion, free_motions
-from manifold.ensemble import chunk_bounds, default_chunk_size
 from manifold import SaveAt
+from manifold.ensemble import chunk_bounds, default_chunk_size
 
 from .starts import chart_start
 

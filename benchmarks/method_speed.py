@@ -40,9 +40,9 @@ from linkage import Chain
 from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.motion import free_motion, free_motions
 from linkage.time_factor import ChainTimeFactor
+from manifold import Precision, SaveAt
 from manifold.constrained import compiled_constrained
 from manifold.precision import is_double
-from manifold import Precision, SaveAt
 from manifold.steppers import TaylorStepper
 from manifold.sundman import SundmanStepper
 

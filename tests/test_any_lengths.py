@@ -25,8 +25,8 @@ from linkage import Chain
 from linkage.ambient import integrate_ambient
 from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.motion import free_motion, free_motions
-from manifold.constrained import compiled_constrained
 from manifold import SaveAt
+from manifold.constrained import compiled_constrained
 
 EXAMPLE = (1.0, 2.0, 1.5, 2.5, 1.2)
 #: Three long sides (l_1, l_2 and L = 3: each pair exceeds P/2 = 5.1): two tori T^3.

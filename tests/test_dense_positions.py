@@ -13,8 +13,8 @@ from linkage import Chain
 from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
 from linkage.sampling import sample_starts
-from manifold.constrained import ConstrainedGeometry, compiled_constrained
 from manifold import SaveAt
+from manifold.constrained import ConstrainedGeometry, compiled_constrained
 from manifold.precision import unit_roundoff
 from manifold.solution import SecondOrderDense, TaylorDense
 from manifold.steppers import taylor_advance

@@ -16,9 +16,9 @@ from linkage.constraints import ChainSystem
 from linkage.motion import free_motion, lyapunov_exponent, lyapunov_exponents
 from linkage.sampling import sample_starts
 from manifold import SolveStatus
+from manifold import SaveAt
 from manifold.budget import Budget
 from manifold.constrained import ConstrainedSystem, compiled_constrained
-from manifold import SaveAt
 from manifold.lyapunov import LyapunovError, lyapunov_spectrum
 
 from .conftest import unit_speed_start

@@ -10,8 +10,8 @@ import pytest
 from linkage import Chain
 from linkage.motion import STRETCHED_GAP, choose_method, free_motion
 from linkage.sampling import sample_starts
-from manifold.steppers import TaylorStepper
 from manifold import SaveAt
+from manifold.steppers import TaylorStepper
 from manifold.budget import Budget
 
 

@@ -14,8 +14,8 @@ import linkage
 import manifold
 from linkage import Chain
 from linkage.motion import free_motion
-from manifold.precision import MultiPrecision, resolve_fp_type
 from manifold import Precision
+from manifold.precision import MultiPrecision, resolve_fp_type
 
 from .conftest import unit_speed_start
 

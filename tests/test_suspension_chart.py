@@ -8,8 +8,8 @@ from hypothesis import strategies as st
 from charts import SuspensionChart
 from charts.chain_geometry import closure_residual, to_complex
 from charts import suspension_formula as formula
-from manifold.backends import NUMPY
 from manifold import ChartDomainError
+from manifold.backends import NUMPY
 
 from .conftest import (
     HALF_PI,
