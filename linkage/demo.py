@@ -133,9 +133,9 @@ def figure(chain: Chain, motion: ChainMotion, ts: NDArray, distance: NDArray, ou
 def main(argv: list[str] | None = None) -> None:
     """The command line ``linkage-demo`` / ``python -m linkage`` (``argv``: its arguments; default ``sys.argv``)."""
     parser = argparse.ArgumentParser(prog="linkage-demo", description=__doc__.splitlines()[0])
-    parser.add_argument("--n", type=int, default=4, help="number of rods (default 4)")
+    parser.add_argument("--n", type=int, default=4, help="number of rods, at least 3 (default 4)")
     parser.add_argument("--L", type=float, default=None, help="pin distance, n-2 < L < n (default n - 1.4)")
-    parser.add_argument("--T", type=float, default=200.0, help="final time (default 200)")
+    parser.add_argument("--T", type=float, default=200.0, help="final time, > 0 (default 200)")
     parser.add_argument("--precision", choices=sorted(PRECISIONS), default="float64",
                         help="floating type of the integration (default float64)")
     parser.add_argument("--out", default="demo.png", help="PNG file to write (default demo.png)")
@@ -144,6 +144,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--progress", action="store_true",
                         help="say what is compiled and show a progress bar of the solve (needs tqdm)")
     args = parser.parse_args(argv)
+    if args.n < 3:  # n = 2 has a configuration space of dimension 0: no motion to draw
+        parser.error(f"--n must be an integer >= 3 (a chain with a motion), got {args.n}")
+    if not (np.isfinite(args.T) and args.T > 0):
+        parser.error(f"--T must be a finite positive time, got {args.T}")
     L = args.n - 1.4 if args.L is None else args.L
     try:
         Chain(args.n, L)

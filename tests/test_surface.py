@@ -52,7 +52,10 @@ def test_version_and_licence():
 
 
 @pytest.mark.parametrize("args, code, text", [(["--help"], 0, "usage: linkage-demo"),
-                                              (["--n", "4", "--L", "5"], 2, "2 < L < 4")])
+                                              (["--n", "4", "--L", "5"], 2, "2 < L < 4"),
+                                              (["--n", "2"], 2, "--n must be an integer >= 3"),
+                                              (["--T", "0"], 2, "--T must be a finite positive time, got 0.0"),
+                                              (["--T", "nan"], 2, "--T must be a finite positive time, got nan")])
 def test_demo_command_line(args, code, text):
     run = subprocess.run([sys.executable, "-m", "linkage", *args], cwd=ROOT, capture_output=True, text=True)
     assert run.returncode == code
