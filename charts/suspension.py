@@ -131,11 +131,14 @@ class SuspensionChart(SymbolicChart):
         """``a`` as floats of shape ``(..., n-2)``, finite, latitudes in ``[-pi/2, pi/2]`` (``ChartDomainError``)."""
         a = real_array("chart parameters", a, finite=False)
         if a.ndim == 0 or a.shape[-1] != self.dim:
+            latitudes = {3: "", 4: "phi_4, "}.get(self.n, f"phi_{self.n}, ..., phi_4, ")
             raise ChartDomainError(
-                f"chart parameters must have shape (..., {self.dim}) = (phi_{self.n}..phi_4, t), got shape {a.shape}"
+                f"chart parameters must have shape (..., {self.dim}) = ({latitudes}t), got shape {a.shape}"
             )
-        if not np.all(np.isfinite(a)):
-            raise ChartDomainError(f"chart parameters must be finite, got {a}")
+        finite = np.isfinite(a)
+        if not finite.all():
+            at = tuple(int(i) for i in np.argwhere(~finite)[0])
+            raise ChartDomainError(f"chart parameters must be finite, got a[{', '.join(map(str, at))}] = {a[at]}")
         lat = a[..., :-1]
         if np.any(np.abs(lat) > np.pi / 2 + LATITUDE_SLACK):
             bad = lat[np.abs(lat) > np.pi / 2 + LATITUDE_SLACK]

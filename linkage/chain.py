@@ -85,9 +85,11 @@ def _positive_vector(name: str, value: ArrayLike | float, size: int, allow_zero:
     lo = 0.0 if allow_zero else lo
     ok = (v >= lo) & (v <= hi)
     if not np.all(ok):
-        bound = f"in [{lo:g}, {hi:g}]"
-        raise ValueError(f"{name} must be {bound} (beyond, the kinetic metric overflows float64; scale all masses "
-                         f"together to bring them in: the geodesics do not change), got {v[~ok]}")
+        bad = v[~ok]
+        why = ("a density is >= 0" if allow_zero else "a mass is > 0") if not np.all(bad > 0) else (
+            "beyond, the kinetic metric overflows float64; scale all masses together to bring them in: the "
+            "geodesics do not change")
+        raise ValueError(f"{name} must be in [{lo:g}, {hi:g}] ({why}), got {bad}")
     return v
 
 
@@ -206,9 +208,11 @@ class Chain:
                              f"{MAX_RODS}, got n = {self.n}")
         t = self.topology()
         if not t.generic:
+            tol = RTOL * (float(np.sum(self.lengths)) + float(self.L))  # topology's: RTOL times the perimeter
             raise ValueError(
                 f"free motion needs a smooth configuration space, and this one is not: {t.summary()} "
-                "(there sum_k eps_k l_k = L; move L or a length off every such signed sum)")
+                f"(there sum_k eps_k l_k = L = {float(self.L)!r} to within {tol:.3g}, RTOL = {RTOL:g} times the "
+                "perimeter; move L or a length off every such signed sum by more than that)")
 
     def diagonal_space(self) -> DiagonalSpace:
         """The diagonal polytope ``D`` of free diagonals ``(|p_2|, ..., |p_{n-1}|)`` (``n >= 3``)."""
@@ -345,14 +349,17 @@ class Chain:
         """
         h = np.asarray(values)
         if h.ndim == 0 or h.shape[-1] != self.n - 1:
-            raise ConfigurationError(f"a {what} has n - 1 = {self.n - 1} complex hinges, got shape {h.shape}")
+            raise ConfigurationError(f"{what}: expected n - 1 = {self.n - 1} complex hinges along its last axis, "
+                                     f"got shape {h.shape}")
         if h.dtype.kind != "c":
             raise ConfigurationError(
-                f"a {what} is expected as complex hinges p_j = x_j + i y_j, got an array of dtype {h.dtype} "
+                f"{what} must hold complex hinges p_j = x_j + i y_j, got an array of dtype {h.dtype} "
                 "(for an interleaved real point (x_1, y_1, ...) use Chain.from_point)"
             )
-        if not np.isfinite(h).all():
-            raise ConfigurationError(f"{what} must be finite, got {h}")
+        finite = np.isfinite(h)
+        if not finite.all():
+            at = tuple(int(i) for i in np.argwhere(~finite)[0])  # the first bad entry, so a row of many is named
+            raise ConfigurationError(f"{what} must be finite, got {what}[{', '.join(map(str, at))}] = {h[at]}")
         return h.astype(complex)
 
     def rods(self, hinges: ArrayLike) -> NDArray:

@@ -412,8 +412,8 @@ def start_states(
         ``(constraints, X0, V0, t_final)`` with real interleaved ``X0``, ``V0`` of shape ``(N, 2(n-1))``.
     """
     check = check_group("start", check, StartCheck)
-    H = chain.as_hinges(hinges0, "configuration")
-    W = chain.as_hinges(velocities0, "velocity")
+    H = chain.as_hinges(hinges0, "hinges0")
+    W = chain.as_hinges(velocities0, "velocities0")
     if H.ndim != 2 or W.shape != H.shape or H.shape[0] == 0:
         raise ValueError(f"hinges0 and velocities0 must both have shape (N, n - 1) = (N, {chain.n - 1}) with N >= 1, "
                          f"got {H.shape} and {W.shape}")

@@ -106,7 +106,7 @@ def _check_x(lengths: NDArray, L: float, x: ArrayLike) -> NDArray:
         raise ValueError(f"x holds the n - 2 = {n - 2} free diagonals (d_2..d_{n-1}) on its last axis, got shape {xs.shape}")
     if not np.all(np.isfinite(xs)):
         idx = tuple(int(i) for i in np.argwhere(~np.isfinite(xs))[0])
-        raise ValueError(f"x must be finite, got x[{idx}] = {xs[idx].item()!r}")
+        raise ValueError(f"x must be finite, got x[{', '.join(map(str, idx))}] = {xs[idx].item()!r}")
     return xs
 
 

@@ -26,15 +26,19 @@ from charts import RoundSphereProposal
 from manifold import sampling as generic
 
 from .chain import Chain
+from .topology import MAX_RODS
 
 
 def _require_atlas(chain: Chain, what: str) -> None:
-    """``ValueError`` naming the alternative unless ``chain`` has a suspension atlas."""
+    """``ValueError`` saying what the chain's space is and naming the alternative, unless ``chain`` has a suspension
+    atlas."""
     if not chain.has_atlas:
+        space = f" ({chain.topology().summary()})" if chain.n <= MAX_RODS else ""
         raise ValueError(
-            f"{what} samples through the suspension atlas, and {chain!r} has none (only a sphere with L "
-            "its dominant side has one); for other chains use chain.diagonal_space().sample(size, rng, measure='riemannian') "
-            "(configurations, in the chain's kinetic metric) and HingeConstraints(chain).project_velocity for velocities")
+            f"{what} samples through the suspension atlas, and {chain!r} has none{space}: only a sphere with L "
+            "its dominant side has one; for other generic chains use chain.diagonal_space().sample(size, rng, "
+            "measure='riemannian') (configurations, in the chain's kinetic metric) and "
+            "HingeConstraints(chain).project_velocity for velocities")
 
 
 def sample_configurations(chain: Chain, size: int, rng: np.random.Generator) -> NDArray:
@@ -95,5 +99,6 @@ def sample_starts(chain: Chain, size: int, energy: float, rng: np.random.Generat
     velocity uniform on its energy sphere; both complex of shape
     ``(size, n-1)``, ready for :func:`linkage.motion.free_motion` one by one.
     """
+    _require_atlas(chain, "sample_starts")
     hinges = sample_configurations(chain, size, rng)
     return hinges, sample_velocities(chain, hinges, energy, rng)

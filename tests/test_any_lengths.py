@@ -245,6 +245,15 @@ def test_non_generic_lengths_are_refused_naming_the_collinear_configuration(L):
         integrate_ambient(chain, h0, np.zeros(4, complex), 1.0)
 
 
+def test_a_nearly_singular_L_is_named_in_full_with_the_tolerance():
+    """L = 3.2 + 1e-13 is within the equality tolerance of a signed sum: the message gives L to every digit and the
+    tolerance (RTOL times the perimeter 8.2 + 3.2, 1.14e-11 here), not the rounded 3.2 of the summary."""
+    L = 3.2 + 1e-13
+    with pytest.raises(ValueError, match=re.escape(f"= L = {L!r} to within 1.14e-11, RTOL = 1e-12 times")):
+        Chain(EXAMPLE, L).check_generic()
+    Chain(EXAMPLE, 3.2 + 1e-10).check_generic()  # beyond the tolerance: generic
+
+
 #: A sphere whose dominant side is the link l_4 = 3.5 (sides (1, 1, 1, 3.5, L = 1), half the perimeter 3.75).
 LINK_DOMINANT = ((1.0, 1.0, 1.0, 3.5), 1.0)
 

@@ -210,7 +210,7 @@ def test_bad_input_names_argument_value_and_range():
         from_diagonals(ls, L, [2.0, 2.0], [1, 1, 1, 1])
     with pytest.raises(ValueError, match="n - 1 = 4 signs"):
         from_diagonals(ls, L, [2.0, 2.0, 3.0], [1, 1, 1])
-    with pytest.raises(ValueError, match="x must be finite"):
+    with pytest.raises(ValueError, match=r"x must be finite, got x\[1\] = nan"):
         from_diagonals(ls, L, [2.0, np.nan, 3.0], [1, 1, 1, 1])
     with pytest.raises(ValueError, match=r"lengths\[3\] = -2.5"):
         from_diagonals([1, 2, 1.5, -2.5, 1.2], L, [2.0, 2.0, 3.0], [1, 1, 1, 1])

@@ -344,6 +344,10 @@ def test_bad_starts_are_refused_with_their_index():
         free_motions(chain, H, W, 1.0)
     with pytest.raises(ValueError, match="complex hinges"):
         free_motions(chain, chain.to_point(H), V, 1.0)
+    W = V.copy()
+    W[2, 1] = np.nan  # a non-finite start is named by its entry, not by printing every start
+    with pytest.raises(ValueError, match=r"^velocities0 must be finite, got velocities0\[2, 1\] = \(?nan"):
+        free_motions(chain, H, W, 1.0)
 
 
 def test_projected_starts_match_single_calls():

@@ -329,7 +329,7 @@ def test_bad_inputs_are_refused_by_name():
     H, V = sample_starts(chain, 1, 0.5, rng)
     with pytest.raises(ValueError, match="vectors0 is not tangent"):
         geometry.parallel_transport(chain, H[0], V[0], H[0], 1.0)
-    with pytest.raises(ValueError, match="vectors0 has n - 1 = 3 complex hinges"):
+    with pytest.raises(ValueError, match="vectors0: expected n - 1 = 3 complex hinges"):
         geometry.parallel_transport(chain, H[0], V[0], np.zeros((2, 5), complex), 1.0)
     with pytest.raises(ValueError, match="field0 and derivative0 must have one shape"):
         geometry.jacobi_field(chain, H[0], V[0], np.zeros(3, complex), np.zeros((2, 3), complex), 1.0)

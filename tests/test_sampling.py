@@ -216,6 +216,11 @@ def test_starts_and_refusals():
     for other in (Chain((1.0, 2.0, 1.5, 2.5, 1.2), 3.0), Chain(4, 1.0)):  # no atlas: the alternative is named
         with pytest.raises(ValueError, match=r"sample_configurations .* has none .*measure='riemannian'"):
             sample_configurations(other, 3, rng)
+    # the function called is named, and what the space is instead: L = 1 is a critical value of three unit rods
+    with pytest.raises(ValueError, match=r"^sample_starts .* Chain\(n=3, L=1.0\) has none \(.*singular \(not a manifold\)"):
+        sample_starts(Chain(3, 1.0), 2, 1.0, rng)
+    with pytest.raises(ValueError, match=r"^sample_starts .* has none \(.*two tori T\^1"):
+        sample_starts(Chain(3, 0.5), 2, 1.0, rng)
     with pytest.raises(ValueError, match="a box needs lower < upper"):
         BoxProposal(np.zeros(2), np.zeros(2))
     with pytest.raises(ValueError, match=r"proposal.draw\(8192, rng\) must return shape \(8192, 2\), got \(8192, 3\)"):

@@ -154,8 +154,13 @@ def test_options_found_unchecked_are_refused_by_name(start):
     x, flips = chain.diagonals(h0)
     with pytest.raises(TypeError, match="x must be an array of real diagonals, got complex"):
         chain.from_diagonals(x + 1j, flips)
-    with pytest.raises(ValueError, match=r"hinge_masses must be in \[1e-100, 1e\+100\]"):
+    with pytest.raises(ValueError, match=r"hinge_masses must be in \[1e-100, 1e\+100\] \(beyond, .*overflows"):
         Chain(4, 2.6, hinge_masses=1e-300)
+    for bad in (0.0, -1.0, np.nan):  # not a scale: no word of overflow
+        with pytest.raises(ValueError, match=r"hinge_masses must be in \[1e-100, 1e\+100\] \(a mass is > 0\)"):
+            Chain(4, 2.6, hinge_masses=bad)
+    with pytest.raises(ValueError, match=r"rod_densities must be in \[0, 1e\+100\] \(a density is >= 0\)"):
+        Chain(4, 2.6, rod_densities=-0.5)
     with pytest.raises(ValueError, match=r"rod_densities must be in \[0, 1e\+100\]"):
         Chain(4, 2.6, rod_densities=1e200)
     with pytest.raises(TypeError, match="metric must be a manifold.InducedMetric"):

@@ -139,8 +139,8 @@ def test_heyoka_expressions_equal_numpy_values(case):
 @pytest.mark.parametrize(
     "a, match",
     [
-        ([0.1, 0.2], r"shape \(\.\.\., 3\)"),
-        ([0.1, np.nan, 0.2], "finite"),
+        ([0.1, 0.2], r"shape \(\.\.\., 3\) = \(phi_5, \.\.\., phi_4, t\)"),
+        ([0.1, np.nan, 0.2], r"finite, got a\[1\] = nan"),
         ([1.6, 0.0, 0.2], r"\[-pi/2, pi/2\]"),
         ([0.0, -2.0, 0.2], r"\[-pi/2, pi/2\]"),
     ],
@@ -148,6 +148,13 @@ def test_heyoka_expressions_equal_numpy_values(case):
 def test_bad_parameters_raise(a, match):
     with pytest.raises(ChartDomainError, match=match):
         SuspensionChart(5, 3.5).get_point(a)
+
+
+def test_the_shape_message_lists_the_parameters():
+    with pytest.raises(ChartDomainError, match=r"shape \(\.\.\., 2\) = \(phi_4, t\), got shape \(3,\)"):
+        SuspensionChart(4, 3.0).get_point([0.1, 0.2, 0.3])
+    with pytest.raises(ChartDomainError, match=r"shape \(\.\.\., 1\) = \(t\), got shape \(2,\)"):
+        SuspensionChart(3, 2.0).get_point([0.1, 0.2])
 
 
 def test_bad_points_raise():
