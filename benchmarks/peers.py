@@ -20,9 +20,15 @@ Conditions (the same for every row): a generic unit-energy start (``generic_star
 ``L = n - 1.3``, unit hinge masses), T = 20, the state at 101 equally spaced times; the error of a
 run is the largest hinge distance ``max_t,k |h_k - h_k^ref|`` to the hinge method's solution in
 real128 (``--quick``: long double) at those times; time is this process's CPU time
-(``time.process_time``: the peers' threads count too, other jobs on the machine do not), every run
+(``time.process_time``: the peers' threads count too, other jobs on the machine do not) with the process pinned to
+one core (:func:`pin_to_one_core`; ``--all-cores`` leaves it free), every run
 warmed up first (compiles excluded), all methods interleaved round by round, the fastest of
-``--rounds`` rounds kept.  A method's time at an error ``e`` is read log-log along its fastest
+``--rounds`` rounds kept.  Pinned, a run beside other jobs gives the same ratios: alone and beside three busy
+processes on the two cores, every ratio at n = 8 agreed within 9 % (at 1e-10: DOP853 15.3x / 15.5x, diffrax
+7.5x / 7.4x, charts against DOP853 1.0x / 1.0x), and at n = 4, where a run takes a millisecond, within 20 %
+where both runs gave a value rather than a bound.  On all cores it did not: JAX keeps a second thread busy while diffrax solves, which doubled diffrax's
+CPU time when a core was free and not when other jobs took it (hinges vs diffrax at 1e-10: 18.7x alone, 8.1x
+beside two busy processes).  A method's time at an error ``e`` is read log-log along its fastest
 runs (the Pareto front of its tolerance sweep); a ratio is the peer's time over ours, at errors
 1e-8, 1e-10 and the peer's best error.  ``>=`` marks a ratio where our loosest run was already
 more accurate than ``e`` (our time at ``e`` is then at most that run's), ``<=`` one where the peer's was.
@@ -37,6 +43,7 @@ installed is reported as such and its column left empty.
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import time
 from collections.abc import Callable
@@ -290,14 +297,28 @@ def ratio_cell(rs: list[tuple[float, float, str]], missing: str = "") -> str:
 # --- the run ------------------------------------------------------------------------------------------------
 
 
+def pin_to_one_core() -> int:
+    """Pin every thread of this process to one CPU (threads started later inherit it); return the CPU.
+
+    JAX's CPU runtime keeps a second thread busy while a solve runs: on 2 cores diffrax's CPU time at n = 8 was
+    1.7-2x its wall time, and fell by half when other jobs took the spare core.  On one core every method's CPU
+    time is its own work, whatever else the machine runs.
+    """
+    cpu = min(os.sched_getaffinity(0))
+    for tid in os.listdir("/proc/self/task"):  # sched_setaffinity(0, ...) would pin the calling thread alone
+        os.sched_setaffinity(int(tid), {cpu})
+    return cpu
+
+
 def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | None, chart_max_n: int,
-         modes: bool = False) -> dict:
+         modes: bool = False, all_cores: bool = False) -> dict:
+    where = "all cores" if all_cores else f"pinned to CPU {pin_to_one_core()}"
     peers = peer_modules()
     for name, mod in peers.items():
         if isinstance(mod, str):
             print(f"peer {name}: {mod}")
     fp_ref = np.longdouble if quick else hy.real128
-    print(f"T = {T:g}, CPU time of this process, fastest of {rounds} interleaved rounds; errors against the hinge "
+    print(f"T = {T:g}, CPU time of this process ({where}), fastest of {rounds} interleaved rounds; errors against the hinge "
           f"method in {'long double' if quick else 'real128'}")
     results: dict[int, dict] = {}
     for n in ns:
@@ -315,7 +336,7 @@ def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | Non
             unit = "evaluations" if r.method == "DOP853" else "steps"
             print(f"    {r.method:8s} tol {knob:6s} {1e3 * r.cpu:9.2f} ms  {r.steps:7d} {unit:11s} error {r.error:.1e}")
         print("    " + ";  ".join(f"{k}: {ratio_cell(v)}" for k, v in results[n]["ratios"].items()), flush=True)
-    table = render(results, peers, T, rounds, quick, modes)
+    table = render(results, peers, T, rounds, quick, modes, pinned=not all_cores)
     print("\n" + table)
     if markdown is not None:
         markdown.write_text(replace_section(markdown.read_text(), SECTION, table))
@@ -324,7 +345,7 @@ def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | Non
 
 
 def render(results: dict[int, dict], peers: dict[str, Any], T: float, rounds: int, quick: bool,
-           modes: bool = False) -> str:
+           modes: bool = False, pinned: bool = True) -> str:
     """The section: conditions in one paragraph, then the ratio table."""
     versions = [f"Python {platform.python_version()}", f"numpy {np.__version__}", f"scipy {scipy.__version__}",
                 f"heyoka {hy.__version__}"]
@@ -338,7 +359,11 @@ def render(results: dict[int, dict], peers: dict[str, Any], T: float, rounds: in
              "with its Baumgarte rate: scipy's DOP853 on a numba right-hand side, diffrax's Dopri8 on JAX for CPU "
              "(jit-compiled, compile excluded). Generic unit-energy start, L = n - 1.3, unit hinge masses, "
              f"T = {T:g}, 101 samples; error: largest hinge distance to the hinge method in "
-             f"{'long double' if quick else 'real128'}; time: CPU time of the process, every method warmed up, "
+             f"{'long double' if quick else 'real128'}; time: CPU time of the process, "
+             + ("pinned to one core (JAX keeps a second thread busy while it solves: on two cores diffrax's CPU time "
+                "was up to twice its work, and halved when other jobs took the spare core)" if pinned else
+                "on all cores (`--all-cores`: a peer's waiting threads count too)")
+             + ", every method warmed up, "
              f"all interleaved, fastest of {rounds} rounds. Ratio: the peer's time over ours at equal error "
              "1e-8 / 1e-10 / the peer's best error (log-log along each method's fastest runs; `>=` and `<=`: our "
              "or the peer's loosest tolerance was already more accurate, a bound; `-`: an error not reached). "
@@ -374,6 +399,8 @@ if __name__ == "__main__":
     parser.add_argument("--compile-modes", action="store_true",
                         help="also the hinges with compact_mode forced True and False, each against DOP853")
     parser.add_argument("--markdown", type=Path, default=None, help="write the table into this page (docs/benchmarks.md)")
+    parser.add_argument("--all-cores", action="store_true",
+                        help="do not pin the process to one core (then a peer's waiting threads add CPU time)")
     args = parser.parse_args()
     main(args.n or ([4, 6] if args.quick else [4, 6, 8, 10, 12]), args.T, args.rounds or (3 if args.quick else 5),
-         args.quick, args.markdown, args.chart_max_n, args.compile_modes)
+         args.quick, args.markdown, args.chart_max_n, args.compile_modes, args.all_cores)
