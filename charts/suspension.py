@@ -131,9 +131,10 @@ class SuspensionChart(SymbolicChart):
         """``a`` as floats of shape ``(..., n-2)``, finite, latitudes in ``[-pi/2, pi/2]`` (``ChartDomainError``)."""
         a = real_array("chart parameters", a, finite=False)
         if a.ndim == 0 or a.shape[-1] != self.dim:
-            latitudes = {3: "", 4: "phi_4, "}.get(self.n, f"phi_{self.n}, ..., phi_4, ")
+            names = [f"phi_{m}" for m in range(self.n, 3, -1)] + ["t"]  # dim = n - 2 names: phi_n..phi_4, t
             raise ChartDomainError(
-                f"chart parameters must have shape (..., {self.dim}) = ({latitudes}t), got shape {a.shape}"
+                f"chart parameters must have shape (..., {self.dim}) = ({', '.join(names[: self.dim])}), "
+                f"got shape {a.shape}"
             )
         finite = np.isfinite(a)
         if not finite.all():

@@ -86,10 +86,14 @@ def _positive_vector(name: str, value: ArrayLike | float, size: int, allow_zero:
     ok = (v >= lo) & (v <= hi)
     if not np.all(ok):
         bad = v[~ok]
-        why = ("a density is >= 0" if allow_zero else "a mass is > 0") if not np.all(bad > 0) else (
-            "beyond, the kinetic metric overflows float64; scale all masses together to bring them in: the "
-            "geodesics do not change")
-        raise ValueError(f"{name} must be in [{lo:g}, {hi:g}] ({why}), got {bad}")
+        unphysical = np.isnan(bad) | ((bad < 0) if allow_zero else (bad <= 0))  # not a mass at all, at any scale
+        reasons = []
+        if unphysical.any():
+            reasons.append("a density is a number >= 0" if allow_zero else "a mass is a number > 0")
+        if (~unphysical).any():
+            reasons.append("beyond the range, the kinetic metric overflows or underflows float64; scale all masses "
+                           "together to bring them in: the geodesics do not change")
+        raise ValueError(f"{name} must be in [{lo:g}, {hi:g}] ({'; '.join(reasons)}), got {bad}")
     return v
 
 
@@ -407,7 +411,7 @@ class Chain:
     def one_configuration(self, hinges: ArrayLike, name: str, hint: str = "") -> NDArray:
         """:meth:`as_hinges` of one configuration: ``ValueError`` naming ``name`` for any other shape than ``(n-1,)``
         (``hint`` appended to the message).  Closure is not checked (:meth:`check_one_configuration`)."""
-        h = self.as_hinges(hinges)
+        h = self.as_hinges(hinges, name)
         if h.shape != (self.n - 1,):
             raise ValueError(f"{name} must be one configuration, shape (n - 1,) = ({self.n - 1},), got {h.shape}{hint}")
         return h

@@ -188,7 +188,8 @@ def sphere_coordinates(motion: ChainMotion, times: ArrayLike) -> NDArray:
     if not motion.chain.has_atlas:
         raise ValueError(
             f"sphere coordinates are read in chart 0 of the suspension atlas, and {motion.chain!r} has none "
-            f"(only a sphere with L its dominant side has one): {motion.chain.topology().summary()}")
+            f"(only a sphere, some side of the polygon (l_1, ..., l_n, L) dominant, has one): "
+            f"{motion.chain.topology().summary()}")
     chart0 = motion.chain.atlas().charts[0]
     hinges = motion(real_array("times", times))[0]
     return chart0.sphere_point(chart0.get_parameters(motion.chain.to_point(hinges)))

@@ -12,9 +12,9 @@ Chains of any link lengths and masses are also covered by
 :meth:`linkage.diagonals.DiagonalSpace.sample` (``chain.diagonal_space()``) with
 ``measure='riemannian'`` (importance resampling: approximate, with an
 effective sample size); the two agree where both apply (``tests/test_sampling.py``).
-The functions here need the suspension atlas (:attr:`linkage.Chain.has_atlas`:
-the sphere with ``L`` its dominant side, ``R - 2 mu < L < R``; ``n - 2 < L < n``
-for unit rods) and refuse other chains by name, pointing to that sampler.
+The functions here need the suspension atlas (:attr:`linkage.Chain.has_atlas`: a sphere, some side of the
+polygon ``(l_1, ..., l_n, L)`` dominant; ``n - 2 < L < n`` for unit rods) and refuse other chains by name, saying
+what their space is and pointing to that sampler.
 """
 
 from __future__ import annotations
@@ -30,13 +30,12 @@ from .topology import MAX_RODS
 
 
 def _require_atlas(chain: Chain, what: str) -> None:
-    """``ValueError`` saying what the chain's space is and naming the alternative, unless ``chain`` has a suspension
-    atlas."""
+    """Unless ``chain`` has a suspension atlas: ``ValueError`` saying what its space is, and the alternative."""
     if not chain.has_atlas:
         space = f" ({chain.topology().summary()})" if chain.n <= MAX_RODS else ""
         raise ValueError(
-            f"{what} samples through the suspension atlas, and {chain!r} has none{space}: only a sphere with L "
-            "its dominant side has one; for other generic chains use chain.diagonal_space().sample(size, rng, "
+            f"{what} samples through the suspension atlas, and {chain!r} has none{space}: only a sphere (some side "
+            "of the polygon (l_1, ..., l_n, L) dominant) has one; for other generic chains use chain.diagonal_space().sample(size, rng, "
             "measure='riemannian') (configurations, in the chain's kinetic metric) and "
             "HingeConstraints(chain).project_velocity for velocities")
 
@@ -98,6 +97,12 @@ def sample_starts(chain: Chain, size: int, energy: float, rng: np.random.Generat
     Configurations uniform in the Riemannian volume, then for each one a
     velocity uniform on its energy sphere; both complex of shape
     ``(size, n-1)``, ready for :func:`linkage.motion.free_motion` one by one.
+
+    Raises
+    ------
+    ValueError
+        For a chain without a suspension atlas (the message says what its space is and names the sampler for
+        other generic chains), and for a bad ``size`` or ``energy``.
     """
     _require_atlas(chain, "sample_starts")
     hinges = sample_configurations(chain, size, rng)

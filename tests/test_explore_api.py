@@ -127,6 +127,7 @@ def malformed_requests() -> list[tuple[object, str, int]]:
         ({**good, "lengths": [1, 1, -1, 1]}, "lengths", 400),
         ({**good, "masses": [1, 1]}, "masses", 400),
         ({**good, "masses": 0}, "masses", 400),
+        ({**good, "masses": 1e200}, "masses", 400),  # beyond the masses' range: refused by Chain, named as masses
         ({**good, "hinges": as_pairs(h[:2])}, "hinges", 400),
         ({**good, "hinges": [[0, 0, 0]] * 3}, "hinges", 400),
         ({**good, "hinges": [[math.nan, 0]] * 3}, "hinges", 400),
@@ -144,7 +145,7 @@ def malformed_requests() -> list[tuple[object, str, int]]:
 
 def test_malformed_requests_are_refused_and_the_server_stays_up(client: TestClient) -> None:
     cases = malformed_requests()
-    assert len(cases) == 30
+    assert len(cases) == 31
     for request, field, status in cases:
         answer = client.post("/api/motion", content=json.dumps(request))  # NaN and inf written as JSON5 does
         assert answer.status_code == status, (request, answer.text)

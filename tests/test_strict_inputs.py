@@ -154,19 +154,25 @@ def test_options_found_unchecked_are_refused_by_name(start):
     x, flips = chain.diagonals(h0)
     with pytest.raises(TypeError, match="x must be an array of real diagonals, got complex"):
         chain.from_diagonals(x + 1j, flips)
-    with pytest.raises(ValueError, match=r"hinge_masses must be in \[1e-100, 1e\+100\] \(beyond, .*overflows"):
+    with pytest.raises(ValueError, match=r"hinge_masses must be in \[1e-100, 1e\+100\] \(beyond the range, .*overflows or underflows"):
         Chain(4, 2.6, hinge_masses=1e-300)
     for bad in (0.0, -1.0, np.nan):  # not a scale: no word of overflow
-        with pytest.raises(ValueError, match=r"hinge_masses must be in \[1e-100, 1e\+100\] \(a mass is > 0\)"):
+        with pytest.raises(ValueError, match=r"hinge_masses must be in \[1e-100, 1e\+100\] \(a mass is a number > 0\)"):
             Chain(4, 2.6, hinge_masses=bad)
-    with pytest.raises(ValueError, match=r"rod_densities must be in \[0, 1e\+100\] \(a density is >= 0\)"):
+    with pytest.raises(ValueError, match=r"rod_densities must be in \[0, 1e\+100\] \(a density is a number >= 0\)"):
         Chain(4, 2.6, rod_densities=-0.5)
+    with pytest.raises(ValueError, match=r"\(a mass is a number > 0; beyond the range, .*\), got \[0.e\+000 1.e\+200\]"):
+        Chain(4, 2.6, hinge_masses=[0.0, 1e200, 1.0])  # both reasons, each for its value
     with pytest.raises(ValueError, match=r"rod_densities must be in \[0, 1e\+100\]"):
         Chain(4, 2.6, rod_densities=1e200)
     with pytest.raises(TypeError, match="metric must be a manifold.InducedMetric"):
         solve_chart_exp_ode(None, np.zeros(6), np.zeros(6), 1.0)
     with pytest.raises(ValueError, match=r"hinges0 must be one configuration.*free_motions"):
         free_motion(chain, np.stack([h0, h0]), np.stack([v0, v0]), 1.0, method="hinges")
+    bad = h0.copy()
+    bad[1] = np.nan  # named by the argument the user wrote, with the entry
+    with pytest.raises(ValueError, match=r"^hinges0 must be finite, got hinges0\[1\] = \(?nan"):
+        free_motion(chain, bad, v0, 1.0, method="hinges")
     for method in ("hinges", "charts"):
         with pytest.raises(TypeError, match=f"free_motion.method='{method}'. does not take rtol=1e-10; the tolerance is "
                                             r"precision=Precision\(tol=\.\.\.\)"):

@@ -139,7 +139,7 @@ def test_heyoka_expressions_equal_numpy_values(case):
 @pytest.mark.parametrize(
     "a, match",
     [
-        ([0.1, 0.2], r"shape \(\.\.\., 3\) = \(phi_5, \.\.\., phi_4, t\)"),
+        ([0.1, 0.2], r"shape \(\.\.\., 3\) = \(phi_5, phi_4, t\)"),
         ([0.1, np.nan, 0.2], r"finite, got a\[1\] = nan"),
         ([1.6, 0.0, 0.2], r"\[-pi/2, pi/2\]"),
         ([0.0, -2.0, 0.2], r"\[-pi/2, pi/2\]"),

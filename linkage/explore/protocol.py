@@ -190,8 +190,10 @@ def parse_chain(body: dict[str, Any], limits: Limits) -> Chain:
         raise RequestError("masses", f"hinge masses must be > 0, got {masses!r}")
     try:
         chain = Chain(rods, L, hinge_masses=weights)
-    except ValueError as err:  # an empty configuration space: the message names the side that is too long
-        raise RequestError("L" if "empty: L =" in str(err) else "lengths", str(err)) from None
+    except ValueError as err:  # masses out of range, or an empty space: the message names the side that is too long
+        message = str(err)
+        field = "masses" if message.startswith("hinge_masses") else "L" if "empty: L =" in message else "lengths"
+        raise RequestError(field, message) from None
     return chain
 
 
