@@ -21,10 +21,12 @@ method, float64, default tolerance and compile options, no dense output.  Rows:
 * ``free_motions threads``: as ``serial`` on the threads backend (wall time: the CPU time of
   threads adds up over cores).
 
-Before the table, the pair the 0.8x target compares (``bare batch`` and ``free_motions serial``) is timed alone,
-interleaved, before any other row has run: both then lend the same batch integrator.  The threads row makes copies
-of it in its worker threads, and afterwards the serial rows may lend one of those; on 8 AVX-512 lanes the SIMD code's
-speed differed by up to a third from one process to the next, and the table's ratio spread over 0.65-1.14.
+Before the table's rows run, the pair the 0.8x target compares (``bare batch`` and ``free_motions serial``) is
+timed alone, interleaved (printed after the table): both then lend the batch integrator made in the main thread.
+The threads row makes copies of it in its worker threads; the integrator pool lends the copy returned last, so the
+two rows of one round share a copy, but their fastest rounds may not.  On 8 AVX-512 lanes the SIMD code's speed
+differed by up to a third from one process to the next, and earlier runs of the table spread over 0.65-1.14;
+whether the copies explain that is not settled.
 
 On a machine shared with other jobs the threads row says little (Linux gives the process its
 share of the cores however many threads it runs), so the run also checks the premise of the
@@ -124,7 +126,8 @@ def gil_free_share(run: Callable[[], object]) -> float:
 
 
 def measure(n: int, count: int, T: float, rounds: int) -> tuple[dict[str, float], dict[str, float]]:
-    """Prints and returns ``(best, gaps)``: each row's least time (seconds) and the largest distance of its end
+    """Prints and returns ``(best, gaps)``: each row's least time (seconds; also ``"bare batch, pair alone"`` and
+    ``"free_motions serial, pair alone"``, the pair timed before the other rows) and the largest distance of its end
     points from the loop of single solves'."""
     chain = Chain(n, n - 1.4)
     H, V = starts(chain, count)
@@ -140,8 +143,8 @@ def measure(n: int, count: int, T: float, rounds: int) -> tuple[dict[str, float]
                                                .solution.end_state()[0].astype(float) for h, v in zip(H, V)]), False),
         "free_motions threads": (lambda: free_motions(chain, H, V, T, backend="threads").solution.end_points, True),
     }
-    # the pair the 0.8x target compares, alone first: before any other row has run, both lend the one batch
-    # integrator; once the threads row has made copies in other threads, the serial rows may get another
+    # the pair the 0.8x target compares, alone first: before any other row has run, both lend the batch integrator
+    # made in the main thread (after the threads row, the pool holds copies made in its worker threads too)
     pair = {name: rows[name][0] for name in ("bare batch", "free_motions serial")}
     for fn in pair.values():
         fn()  # warm-up: compiles, caches
@@ -177,6 +180,7 @@ def measure(n: int, count: int, T: float, rounds: int) -> tuple[dict[str, float]
           f"threads on {len(os.sched_getaffinity(0))} cores: {serial / best['free_motions threads']:.2f}x serial (wall)")
     share = gil_free_share(lambda: free_motions(chain, H, V, 10 * T))
     print(f"  GIL free for another thread during free_motions serial at T = {10 * T:g}: {share:.2f} of the idle rate")
+    best.update({f"{name}, pair alone": seconds for name, seconds in paired.items()})
     return best, gaps
 
 

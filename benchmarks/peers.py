@@ -297,22 +297,40 @@ def ratio_cell(rs: list[tuple[float, float, str]], missing: str = "") -> str:
 # --- the run ------------------------------------------------------------------------------------------------
 
 
-def pin_to_one_core() -> int:
-    """Pin every thread of this process to one CPU (threads started later inherit it); return the CPU.
+def pin_to_one_core() -> int | None:
+    """Pin every thread of this process to one CPU (threads started later inherit it).
 
     JAX's CPU runtime keeps a second thread busy while a solve runs: on 2 cores diffrax's CPU time at n = 8 was
     1.7-2x its wall time, and fell by half when other jobs took the spare core.  On one core every method's CPU
-    time is its own work, whatever else the machine runs.
+    time is its own work, whatever else the machine runs.  Call it before the peers are imported (:func:`main`
+    does), so that their threads start pinned.
+
+    Returns
+    -------
+    int or None
+        The CPU, or ``None`` where the system cannot pin threads (no ``os.sched_setaffinity`` or no
+        ``/proc/self/task``): then the process runs on all cores.
     """
+    if not hasattr(os, "sched_setaffinity") or not os.path.isdir("/proc/self/task"):
+        return None
     cpu = min(os.sched_getaffinity(0))
-    for tid in os.listdir("/proc/self/task"):  # sched_setaffinity(0, ...) would pin the calling thread alone
-        os.sched_setaffinity(int(tid), {cpu})
-    return cpu
+    done: set[int] = set()
+    while True:  # until no thread is left unpinned: one may have started while the others were pinned
+        tids = {int(tid) for tid in os.listdir("/proc/self/task")} - done
+        if not tids:
+            return cpu
+        for tid in tids:
+            try:  # sched_setaffinity(0, ...) would pin the calling thread alone
+                os.sched_setaffinity(tid, {cpu})
+            except ProcessLookupError:  # the thread ended in between
+                pass
+        done |= tids
 
 
 def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | None, chart_max_n: int,
          modes: bool = False, all_cores: bool = False) -> dict:
-    where = "all cores" if all_cores else f"pinned to CPU {pin_to_one_core()}"
+    cpu = None if all_cores else pin_to_one_core()
+    where = "all cores" if cpu is None else f"pinned to CPU {cpu}"
     peers = peer_modules()
     for name, mod in peers.items():
         if isinstance(mod, str):
@@ -336,7 +354,7 @@ def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | Non
             unit = "evaluations" if r.method == "DOP853" else "steps"
             print(f"    {r.method:8s} tol {knob:6s} {1e3 * r.cpu:9.2f} ms  {r.steps:7d} {unit:11s} error {r.error:.1e}")
         print("    " + ";  ".join(f"{k}: {ratio_cell(v)}" for k, v in results[n]["ratios"].items()), flush=True)
-    table = render(results, peers, T, rounds, quick, modes, pinned=not all_cores)
+    table = render(results, peers, T, rounds, quick, modes, pinned=cpu is not None)
     print("\n" + table)
     if markdown is not None:
         markdown.write_text(replace_section(markdown.read_text(), SECTION, table))
@@ -346,7 +364,8 @@ def main(ns: list[int], T: float, rounds: int, quick: bool, markdown: Path | Non
 
 def render(results: dict[int, dict], peers: dict[str, Any], T: float, rounds: int, quick: bool,
            modes: bool = False, pinned: bool = True) -> str:
-    """The section: conditions in one paragraph, then the ratio table."""
+    """The section: conditions in one paragraph (``pinned``: whether the process ran on one core,
+    :func:`pin_to_one_core`), then the ratio table."""
     versions = [f"Python {platform.python_version()}", f"numpy {np.__version__}", f"scipy {scipy.__version__}",
                 f"heyoka {hy.__version__}"]
     for name, mod in peers.items():

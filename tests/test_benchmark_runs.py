@@ -24,7 +24,7 @@ def test_call_cost_bare_heyoka_ends_where_the_call_ends():
 
 def test_ensemble_simd_rows_end_where_single_solves_end():
     best, gaps = ensemble_simd.measure(4, count=6, T=1.0, rounds=1)
-    assert set(gaps) == set(best)
+    assert set(best) == set(gaps) | {"bare batch, pair alone", "free_motions serial, pair alone"}
     # SIMD lanes round differently from scalar code: agreement to rounding, not to the bit
     assert max(gaps.values()) <= 1e-13, gaps
     assert all(np.isfinite(t) and t > 0 for t in best.values())
