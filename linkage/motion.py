@@ -206,9 +206,9 @@ def choose_method(chain: Chain, options: dict[str, Any]) -> str:
     ``stabilisation``, ``rate``, ``compact_mode``, ...: the hinges); else ``"charts"``
     where the chain has an atlas and is nearly stretched (its dominant side within :data:`STRETCHED_GAP` of the
     perimeter from the others' sum: the top of a sphere range, where the hinge method's velocities collect
-    errors that no check sees); otherwise ``"hinges"``, the faster at every size and precision measured (8-19x
-    at equal error 1e-10 in float64 for n = 4..10, 5.2x in real128 at n = 4: ``docs/methods.md``, "which method
-    when").
+    errors that no check sees); otherwise ``"hinges"``, the faster at every size and precision measured (7-15x
+    at equal error 1e-10 in float64 for n = 4..10 in the last two runs of ``benchmarks.peers``, 4.8-4.9x in
+    real128 at n = 4: ``docs/methods.md``, "which method when").
     """
     charts, hinges, given = set(_method_options("charts")), set(_method_options("hinges")), set(options)
     if given & (charts - hinges):
