@@ -100,6 +100,20 @@ def bare(chain: Chain, H: np.ndarray, V: np.ndarray, T: float, lanes: int) -> Ca
     return run
 
 
+def fastest(runs: dict, rounds: int) -> dict:
+    """Each callable's least CPU time (seconds) over ``rounds`` rounds that call them all in turn, after one
+    warm-up call of each (compiles, caches)."""
+    for run in runs.values():
+        run()
+    best = dict.fromkeys(runs, np.inf)
+    for _ in range(rounds):
+        for key, run in runs.items():
+            t0 = time.process_time()
+            run()
+            best[key] = min(best[key], time.process_time() - t0)
+    return best
+
+
 def gil_free_share(run: Callable[[], object]) -> float:
     """A counter thread's progress while ``run()`` works in this thread, over its progress while this thread sleeps
     as long."""
@@ -145,15 +159,7 @@ def measure(n: int, count: int, T: float, rounds: int) -> tuple[dict[str, float]
     }
     # the pair the 0.8x target compares, alone first: before any other row has run, both lend the batch integrator
     # made in the main thread (after the threads row, the pool holds copies made in its worker threads too)
-    pair = {name: rows[name][0] for name in ("bare batch", "free_motions serial")}
-    for fn in pair.values():
-        fn()  # warm-up: compiles, caches
-    paired = dict.fromkeys(pair, np.inf)
-    for _ in range(rounds):
-        for name, fn in pair.items():
-            t0 = time.process_time()
-            fn()
-            paired[name] = min(paired[name], time.process_time() - t0)
+    paired = fastest({name: rows[name][0] for name in ("bare batch", "free_motions serial")}, rounds)
     ends = {name: fn() for name, (fn, _) in rows.items()}  # warm-up of the rest
     best = dict.fromkeys(rows, np.inf)
     for _ in range(rounds):
@@ -191,14 +197,7 @@ def widths(n: int, count: int, T: float, rounds: int, compact: bool) -> dict[int
     width = hy.recommended_simd_size()
     runs = {b: functools.partial(free_motions, chain, H, V, T, compact_mode=compact, batch_size=b, chunk_size=count)
             for b in (1, width, 2 * width, 4 * width)}
-    for run in runs.values():
-        run()  # compiles
-    best = dict.fromkeys(runs, np.inf)
-    for _ in range(rounds):
-        for b, run in runs.items():
-            t0 = time.process_time()
-            run()
-            best[b] = min(best[b], time.process_time() - t0)
+    best = fastest(runs, rounds)
     print(f"n = {n}, compact mode {compact}: " + ", ".join(
         f"{b} lanes {1e3 * t:.1f} ms ({t / best[width]:.2f}x the width's)" for b, t in best.items()))
     return best
