@@ -22,11 +22,10 @@ method, float64, default tolerance and compile options, no dense output.  Rows:
   threads adds up over cores).
 
 Before the table's rows run, the pair the 0.8x target compares (``bare batch`` and ``free_motions serial``) is
-timed alone, interleaved (printed after the table): both then lend the batch integrator made in the main thread.
-The threads row makes copies of it in its worker threads; the integrator pool lends the copy returned last, so the
-two rows of one round share a copy, but their fastest rounds may not.  On 8 AVX-512 lanes the SIMD code's speed
-differed by up to a third from one process to the next, and earlier runs of the table spread over 0.65-1.14;
-whether the copies explain that is not settled.
+timed alone, interleaved over a few seconds (printed after the table).  On 8 AVX-512 lanes the SIMD code's speed
+moved with the state of the machine by up to a third from one process to the next (copies of the integrator made
+in any thread ran alike within one process); rows timed at different moments may then see different speeds, which
+would explain why earlier runs of the table spread over 0.65-1.14.
 
 On a machine shared with other jobs the threads row says little (Linux gives the process its
 share of the cores however many threads it runs), so the run also checks the premise of the
@@ -157,8 +156,7 @@ def measure(n: int, count: int, T: float, rounds: int) -> tuple[dict[str, float]
                                                .solution.end_state()[0].astype(float) for h, v in zip(H, V)]), False),
         "free_motions threads": (lambda: free_motions(chain, H, V, T, backend="threads").solution.end_points, True),
     }
-    # the pair the 0.8x target compares, alone first: before any other row has run, both lend the batch integrator
-    # made in the main thread (after the threads row, the pool holds copies made in its worker threads too)
+    # the pair the 0.8x target compares, alone first, timed together: the SIMD code's speed moves with the machine
     paired = fastest({name: rows[name][0] for name in ("bare batch", "free_motions serial")}, rounds)
     ends = {name: fn() for name, (fn, _) in rows.items()}  # warm-up of the rest
     best = dict.fromkeys(rows, np.inf)
