@@ -19,7 +19,7 @@ from manifold.atlas import Atlas
 from manifold.chart import ChartDomainError
 from manifold.precision import as_fp
 from manifold.symbolic import SymbolicChart
-from manifold.validation import real_array
+from manifold.validation import first_entry, real_array
 
 from . import suspension_formula as formula
 from manifold.backends import NUMPY
@@ -138,8 +138,7 @@ class SuspensionChart(SymbolicChart):
             )
         finite = np.isfinite(a)
         if not finite.all():
-            at = tuple(int(i) for i in np.argwhere(~finite)[0])
-            raise ChartDomainError(f"chart parameters must be finite, got a[{', '.join(map(str, at))}] = {a[at]}")
+            raise ChartDomainError(f"chart parameters must be finite, got {first_entry('a', a, ~finite)}")
         lat = a[..., :-1]
         if np.any(np.abs(lat) > np.pi / 2 + LATITUDE_SLACK):
             bad = lat[np.abs(lat) > np.pi / 2 + LATITUDE_SLACK]

@@ -49,6 +49,7 @@ from charts.chain_geometry import (
 )
 from manifold import InducedMetric
 from manifold.constrained import START_ROUNDING_MARGIN
+from manifold.validation import first_entry
 
 from .diagonal_path import DiagonalPath, diagonal_path
 from .diagonals import DiagonalSpace, diagonals, from_diagonals
@@ -362,8 +363,7 @@ class Chain:
             )
         finite = np.isfinite(h)
         if not finite.all():
-            at = tuple(int(i) for i in np.argwhere(~finite)[0])  # the first bad entry, so a row of many is named
-            raise ConfigurationError(f"{what} must be finite, got {what}[{', '.join(map(str, at))}] = {h[at]}")
+            raise ConfigurationError(f"{what} must be finite, got {first_entry(what, h, ~finite)}")
         return h.astype(complex)
 
     def rods(self, hinges: ArrayLike) -> NDArray:

@@ -34,7 +34,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection
 
 from charts.chain_geometry import rod_vectors
-from manifold.validation import check_positive_int, real_array
+from manifold.validation import check_positive_int, first_entry, real_array
 
 from .lengths import validate_lengths
 
@@ -104,9 +104,9 @@ def _check_x(lengths: NDArray, L: float, x: ArrayLike) -> NDArray:
     xs = real_array("x", x, finite=False, expected="an array of real diagonals")  # finite: checked below, by entry
     if xs.ndim == 0 or xs.shape[-1] != n - 2:
         raise ValueError(f"x holds the n - 2 = {n - 2} free diagonals (d_2..d_{n-1}) on its last axis, got shape {xs.shape}")
-    if not np.all(np.isfinite(xs)):
-        idx = tuple(int(i) for i in np.argwhere(~np.isfinite(xs))[0])
-        raise ValueError(f"x must be finite, got x[{', '.join(map(str, idx))}] = {xs[idx].item()!r}")
+    finite = np.isfinite(xs)
+    if not finite.all():
+        raise ValueError(f"x must be finite, got {first_entry('x', xs, ~finite)}")
     return xs
 
 

@@ -12,7 +12,8 @@ import numbers
 
 import numpy as np
 
-__all__ = ["check_bool", "check_index", "check_positive_int", "check_real", "check_time_grid", "real_array"]
+__all__ = ["check_bool", "check_index", "check_positive_int", "check_real", "check_time_grid", "first_entry",
+           "real_array"]
 
 
 def check_real(name: str, value: object, *, positive: bool = False, nonzero: bool = False,
@@ -112,6 +113,13 @@ def check_positive_int(name: str, value: object) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) or value < 1:
         raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
     return int(value)
+
+
+def first_entry(name: str, values: np.ndarray, bad: np.ndarray) -> str:
+    """``name[i, j] = value`` for the first ``True`` of the mask ``bad`` over the array ``values`` (at least one):
+    a message names the entry at fault instead of printing an array of many."""
+    at = tuple(int(i) for i in np.argwhere(bad)[0])
+    return f"{name}[{', '.join(map(str, at))}] = {values[at].item()!r}"
 
 
 def real_array(name: str, value: object, *, finite: bool = True,
