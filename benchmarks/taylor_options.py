@@ -17,6 +17,14 @@ n (unit masses, ``L = n - 1.3``, the unit-speed generic start of the study):
    (as ``benchmarks.peers`` calls it; the least of 5, the two modes interleaved), with their ratio and the
    largest hinge distance between the two runs' samples: what the chart path's compile option is chosen
    from (``TaylorStepper(compact_mode=...)``).  ``--sections 4`` runs it alone (about 5 minutes to n = 8).
+5. **heyoka's other code-generation flags** on the hinge method's integrator (float64, its default compile mode,
+   the n in ``--flags-n``), which the library leaves at heyoka's defaults: ``fast_math`` and ``slp_vectorize`` on
+   the scalar integrator, and ``force_avx512`` on the SIMD batch integrator of ``free_motions`` (heyoka's SIMD
+   width and 8 lanes), for ``FLAG_STARTS`` starts to T = ``--T``.  Columns: the cold compile (CPU seconds, disk
+   cache off), the CPU time of the whole loop or batch (the least of 7, every variant in turn), its ratio to the
+   default scalar loop, and the largest distance of its end states from the default's.  The rows of 8 lanes
+   and more move between processes with the stack's alignment (``benchmarks.simd_stack_phase``); within one
+   process they run at the same one.  ``--sections 5`` runs it alone (about 2 minutes).
 
 CPU time of this process, not wall time: the machine is shared.  Compare the ratios printed side by side.
 """
@@ -29,6 +37,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from typing import Any
 
 import heyoka as hy
 import numpy as np
@@ -38,6 +47,7 @@ from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
 from manifold import Precision, SaveAt, TaylorStepper, compiled, solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
+from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
 from manifold.sundman import SundmanStepper
 
 from .study.experiments import generic_start
@@ -45,6 +55,8 @@ from .study.experiments import generic_start
 COMPACT_OPTIONS = [(True, 3), (True, 2), (True, 1), (True, 0)]
 EPS = float(np.finfo(float).eps)
 TOLERANCES = [1e-12, 1e-13, 1e-14, 1e-15, EPS]
+#: Section 5: the starts each variant integrates, and its rounds.
+FLAG_STARTS, FLAG_ROUNDS = 64, 7
 
 
 def _rebuild(family, fp_type, compact: bool, opt_level: int) -> float:
@@ -153,6 +165,63 @@ def default_path_modes(n: int, tol: float = 1e-10, T: float = 20.0, repeat: int 
     return out
 
 
+def hinge_problem(n: int, count: int, T: float) -> tuple[list, np.ndarray, np.ndarray, bool]:
+    """The hinge method's equations (Baumgarte-stabilised, as ``free_motion`` and ``free_motions`` integrate
+    them), ``count`` start states (rows) and their runtime parameters (rows), from the study's generic starts
+    (seeds ``0 .. count - 1`` on the chain of seed 0), and the method's default compact mode."""
+    system = ChainSystem(generic_start(n)[0])
+    comp, geo = compiled_constrained(system), ConstrainedGeometry(system, float)
+    starts = [generic_start(n, seed)[1:] for seed in range(count)]
+    xs, vs, _, alphas = geo.start(np.array([p for p, _ in starts]), np.array([v for _, v in starts]), T, 1.0)
+    pars = np.array([comp.layout.pack(system, float(a), float) for a in alphas])
+    return comp.pieces(float).equations(True), np.concatenate([xs, vs], axis=1), pars, default_compact_mode(system, float)
+
+
+def flag_variants(n: int, T: float) -> list[dict]:
+    """Section 5 for one ``n``: per variant, its cold compile, least CPU time over the starts and end states."""
+    equations, Y, P, compact = hinge_problem(n, FLAG_STARTS, T)
+    width = hy.recommended_simd_size()
+    variants = [("scalar", 1, {}), ("scalar, fast_math", 1, {"fast_math": True}),
+                ("scalar, slp_vectorize", 1, {"slp_vectorize": True}),
+                (f"batch of {width} (SIMD width)", width, {})]
+    variants += [(f"batch of 8{avx}", 8, flags) for avx, flags in (("", {}), (", force_avx512", {"force_avx512": True}))
+                 if width != 8 or flags]
+    cache_was = hy.llvm_state.get_diskcache_enabled()
+    hy.llvm_state.set_diskcache_enabled(False)
+    rows = []
+    for name, lanes, flags in variants:
+        hy.llvm_state.clear_memcache()
+        c0 = time.process_time()
+        if lanes == 1:
+            ta = hy.taylor_adaptive(equations, Y[0], compact_mode=compact, **flags)
+        else:
+            ta = hy.taylor_adaptive_batch(equations, np.zeros((Y.shape[1], lanes)), compact_mode=compact, **flags)
+        rows.append({"name": name, "lanes": lanes, "ta": ta, "cold": time.process_time() - c0, "cpu": np.inf})
+    hy.llvm_state.set_diskcache_enabled(cache_was)
+
+    def run(ta: Any, lanes: int) -> np.ndarray:
+        npars, ends = len(ta.pars), []
+        for i in range(0, len(Y), lanes):
+            if lanes == 1:
+                ta.state[:], ta.time, ta.pars[:] = Y[i], 0.0, P[i, :npars]
+            else:
+                ta.set_time(0.0)
+                ta.state[:], ta.pars[:] = Y[i : i + lanes].T, P[i : i + lanes, :npars].T
+            ta.propagate_until(T)
+            ends.append(np.array(ta.state).reshape(Y.shape[1], lanes).T)
+        return np.concatenate(ends)
+
+    for _ in range(FLAG_ROUNDS):
+        for row in rows:
+            c0 = time.process_time()
+            row["end"] = run(row["ta"], row["lanes"])
+            row["cpu"] = min(row["cpu"], time.process_time() - c0)
+    for row in rows:
+        row["ratio"] = rows[0]["cpu"] / row["cpu"]
+        row["apart"] = float(np.abs(row["end"] - rows[0]["end"]).max())
+    return rows
+
+
 def _show(n: int, rows: list[dict]) -> None:
     base = next(r["cpu"] for r in rows if r["compact"] and r["opt"] == 3)
     for r in rows:
@@ -168,7 +237,8 @@ def main() -> None:
     parser.add_argument("--timeout", type=float, default=900.0, help="seconds allowed to one compact_mode=False trial")
     parser.add_argument("--real128-T", type=float, default=10.0)
     parser.add_argument("--default-n", type=int, nargs="+", default=[3, 4, 5, 6, 8], help="n of section 4")
-    parser.add_argument("--sections", default="1234", help="which sections to run, e.g. 4")
+    parser.add_argument("--flags-n", type=int, nargs="+", default=[4, 8], help="n of section 5")
+    parser.add_argument("--sections", default="12345", help="which sections to run, e.g. 4")
     parser.add_argument("--one", type=int, metavar="N", help=argparse.SUPPRESS)
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as cache:  # a scratch disk cache: the user's is left alone
@@ -189,6 +259,8 @@ def report(args: argparse.Namespace) -> None:
         real128(args)
     if "4" in args.sections:
         default_path(args)
+    if "5" in args.sections:
+        codegen_flags(args)
 
 
 def default_path(args: argparse.Namespace) -> None:
@@ -241,6 +313,18 @@ def real128(args: argparse.Namespace) -> None:
     runs = run_cpu(4, args.real128_T, steppers, hy.real128, repeat=1)
     for (_, opt), build, (cpu, sol) in zip(COMPACT_OPTIONS, builds, runs):
         print(f"{opt:>3} {build:9.2f} {cpu:8.2f} {sol.n_steps:>6} {sol.relative_energy_error:8.1e}", flush=True)
+
+
+def codegen_flags(args: argparse.Namespace) -> None:
+    """Section 5."""
+    print(f"\n5. heyoka's code-generation flags on the hinge integrator (float64, its default compile mode; "
+          f"{FLAG_STARTS} starts to T = {args.T:g}; CPU time, least of {FLAG_ROUNDS}, variants in turn; "
+          f"SIMD width here {hy.recommended_simd_size()})")
+    print(f"{'n':>2} {'variant':<28} {'cold s':>7} {'ms':>8} {'scalar / it':>11} {'ends apart':>10}")
+    for n in args.flags_n:
+        for r in flag_variants(n, args.T):
+            print(f"{n:>2} {r['name']:<28} {r['cold']:7.2f} {1e3 * r['cpu']:8.2f} {r['ratio']:11.2f} "
+                  f"{r['apart']:10.1e}", flush=True)
 
 
 if __name__ == "__main__":
