@@ -22,10 +22,10 @@ method, float64, default tolerance and compile options, no dense output.  Rows:
   threads adds up over cores).
 
 Before the table's rows run, the pair the 0.8x target compares (``bare batch`` and ``free_motions serial``) is
-timed alone, interleaved over a few seconds (printed after the table).  On 8 AVX-512 lanes the SIMD code's speed
-moved with the state of the machine by up to a third from one process to the next (copies of the integrator made
-in any thread ran alike within one process); rows timed at different moments may then see different speeds, which
-would explain why earlier runs of the table spread over 0.65-1.14.
+timed alone, interleaved over a few seconds (printed after the table).  On 8 AVX-512 lanes and more the SIMD
+code's speed depends on the alignment of the calling thread's stack (``benchmarks.simd_stack_phase``), which the
+kernel sets at random for the main thread of each process: the same rows moved by up to 1.9x from one process to
+the next, and earlier runs of the table spread over 0.65-1.14.
 
 On a machine shared with other jobs the threads row says little (Linux gives the process its
 share of the cores however many threads it runs), so the run also checks the premise of the

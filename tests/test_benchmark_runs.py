@@ -2,9 +2,12 @@
 size, and compare like with like: what they time as "bare heyoka" integrates the very equations, state and
 parameters the library's call integrates, so both end in the same place.  No timing is checked here."""
 
+import heyoka as hy
 import numpy as np
+import pytest
 
-from benchmarks import call_cost, ensemble_simd
+from benchmarks import call_cost, ensemble_simd, simd_stack_phase, taylor_options
+from benchmarks.study.experiments import generic_start
 from linkage.motion import free_motion
 from manifold import SaveAt
 
@@ -28,3 +31,42 @@ def test_ensemble_simd_rows_end_where_single_solves_end():
     # SIMD lanes round differently from scalar code: agreement to rounding, not to the bit
     assert max(gaps.values()) <= 1e-13, gaps
     assert all(np.isfinite(t) and t > 0 for t in best.values())
+
+
+def test_taylor_options_flags_integrate_the_hinge_method_s_own_problem():
+    # the scalar integrator of hinge_problem, unflagged, is the one free_motion steps: same end, bit for bit
+    equations, Y, P, compact = taylor_options.hinge_problem(4, 3, 1.0)
+    chain, p0, v0 = generic_start(4, seed=2)
+    ta = hy.taylor_adaptive(equations, Y[2], compact_mode=compact)
+    ta.pars[:] = P[2, : len(ta.pars)]
+    ta.propagate_until(1.0)
+    motion = free_motion(chain, chain.from_point(p0), chain.from_point(v0), 1.0, method="hinges",
+                         save=SaveAt(dense=False))
+    assert np.array_equal(ta.state[: 2 * (chain.n - 1)], motion.solution.end_state()[0])
+    rows = taylor_options.flag_variants(4, 0.5)
+    assert [r["lanes"] for r in rows][:3] == [1, 1, 1] and rows[0]["ratio"] == 1.0
+    # flags and lanes change the rounding only
+    assert max(r["apart"] for r in rows) <= 1e-13, [(r["name"], r["apart"]) for r in rows]
+
+
+@pytest.mark.skipif(simd_stack_phase.GETCONTEXT is None, reason="reads the stack pointer with glibc's getcontext: "
+                    "x86-64 Linux only")
+def test_simd_stack_phase_moves_the_stack_and_changes_no_digit():
+    import ctypes
+
+    context = ctypes.create_string_buffer(4096)
+
+    def depth() -> int:  # the stack pointer itself, read in this frame
+        simd_stack_phase.read_phase(context)
+        return int.from_bytes(context.raw[simd_stack_phase.RSP_OFFSET : simd_stack_phase.RSP_OFFSET + 8], "little")
+
+    pointers = np.array([simd_stack_phase.nested(level, depth) for level in range(4)])
+    steps = np.diff(pointers)
+    # each level adds frames below the last (the interpreter's first calls of a site take a longer path than the
+    # specialised ones after): the stack, growing down, moves down by whole 16-byte steps
+    assert np.all(steps < 0) and np.all(steps % simd_stack_phase.STEP == 0), steps
+    run, label = simd_stack_phase.batches(4, 8, None, 0.2)
+    out = simd_stack_phase.scan(run, rounds=1)
+    # wherever the stack stands, the batch computes the same numbers to the last bit
+    assert out["same"], label
+    assert all(p % simd_stack_phase.STEP == 0 for p in out["phase"].values()), out["phase"]
