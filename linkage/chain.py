@@ -49,7 +49,7 @@ from charts.chain_geometry import (
 )
 from manifold import InducedMetric
 from manifold.constrained import START_ROUNDING_MARGIN
-from manifold.validation import first_entry
+from manifold.validation import ArgumentError, first_entry
 
 from .diagonal_path import DiagonalPath, diagonal_path
 from .diagonals import DiagonalSpace, diagonals, from_diagonals
@@ -81,7 +81,7 @@ def _positive_vector(name: str, value: ArrayLike | float, size: int, allow_zero:
     if v.ndim == 0:
         v = np.full(size, v)
     if v.shape != (size,):
-        raise ValueError(f"{name} must be a scalar or have length {size}, got shape {v.shape}")
+        raise ArgumentError(name, f"{name} must be a scalar or have length {size}, got shape {v.shape}")
     lo, hi = MASS_RANGE
     lo = 0.0 if allow_zero else lo
     ok = (v >= lo) & (v <= hi)
@@ -94,7 +94,7 @@ def _positive_vector(name: str, value: ArrayLike | float, size: int, allow_zero:
         if (~unphysical).any():
             reasons.append("beyond the range, the kinetic metric overflows or underflows float64; scale all masses "
                            "together to bring them in: the geodesics do not change")
-        raise ValueError(f"{name} must be in [{lo:g}, {hi:g}] ({'; '.join(reasons)}), got {bad}")
+        raise ArgumentError(name, f"{name} must be in [{lo:g}, {hi:g}] ({'; '.join(reasons)}), got {bad}")
     return v
 
 
@@ -102,8 +102,8 @@ def _nonempty_chain(lengths: int | ArrayLike, L: object) -> tuple[NDArray, float
     """Validated ``(lengths, L)``: an integer ``n >= 2`` means ``n`` unit rods; an empty space is refused."""
     if np.ndim(lengths) == 0:
         if isinstance(lengths, (bool, np.bool_)) or not isinstance(lengths, numbers.Integral) or lengths < 2:
-            raise ValueError(f"lengths must be an integer n >= 2 (n unit rods) or a sequence of at least 2 "
-                             f"link lengths, got {lengths!r}")
+            raise ArgumentError("lengths", f"lengths must be an integer n >= 2 (n unit rods) or a sequence of at "
+                                           f"least 2 link lengths, got {lengths!r}")
         lengths = np.ones(int(lengths))
     ls, L = validate_lengths(lengths, L)
     j, excess = longest_side(ls, L)
@@ -115,7 +115,8 @@ def _nonempty_chain(lengths: int | ArrayLike, L: object) -> tuple[NDArray, float
         unit = ""
         if np.all(ls == 1):
             unit = f"; {n} unit rods close for 0 < L <= {n}, a sphere S^{n - 2} for {n - 2} < L < {n}"
-        raise ValueError(
+        raise ArgumentError(
+            "L" if j == ls.size else "lengths",
             f"the configuration space is empty: {name} = {side!r} exceeds the sum {P - side:.15g} of the other "
             f"sides of the polygon (l_1, ..., l_n, L), so no configuration closes; every side must be at most "
             f"half the perimeter, here {P / 2:.15g}{unit}")

@@ -10,14 +10,14 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from manifold.validation import check_real
+from manifold.validation import ArgumentError, check_real
 
 
 def validate_lengths(lengths: ArrayLike, L: object) -> tuple[NDArray, float]:
     """Check link lengths and base; return ``(lengths as float array, float(L))``.
 
-    Raises ``ValueError`` naming the argument, the bad value and the valid range:
-    ``lengths`` a 1-D sequence of at least two finite numbers ``> 0``, ``L`` a
+    Raises :class:`~manifold.validation.ArgumentError` (a ``ValueError``) naming the argument, the bad value and
+    the valid range: ``lengths`` a 1-D sequence of at least two finite numbers ``> 0``, ``L`` a
     finite number ``> 0``.
     """
     try:
@@ -25,18 +25,19 @@ def validate_lengths(lengths: ArrayLike, L: object) -> tuple[NDArray, float]:
     except ValueError:  # a ragged nested sequence
         raw = np.asarray(None)
     if raw.dtype.kind not in "iuf":  # strings, booleans, complex or ragged input are not lengths
-        raise ValueError(f"lengths must be a sequence of finite numbers > 0, got {lengths!r}")
+        raise ArgumentError("lengths", f"lengths must be a sequence of finite numbers > 0, got {lengths!r}")
     ls = raw.astype(float)
     if ls.ndim != 1 or ls.size < 2:
-        raise ValueError(f"lengths must be a 1-D sequence of at least 2 link lengths, got shape {ls.shape}")
+        raise ArgumentError("lengths", f"lengths must be a 1-D sequence of at least 2 link lengths, got shape "
+                            f"{ls.shape}")
     bad = ~(np.isfinite(ls) & (ls > 0))
     if np.any(bad):
         k = int(np.argmax(bad))
-        raise ValueError(f"lengths must be finite and > 0, got lengths[{k}] = {float(ls[k])!r}")
+        raise ArgumentError("lengths", f"lengths must be finite and > 0, got lengths[{k}] = {float(ls[k])!r}")
     try:
         Lf = check_real("L", L, positive=True)  # refuses strings and booleans, which float() would take
     except ValueError:
-        raise ValueError(f"L (base length) must be a finite number > 0, got L = {L!r}") from None
+        raise ArgumentError("L", f"L (base length) must be a finite number > 0, got L = {L!r}") from None
     return ls, Lf
 
 

@@ -12,8 +12,18 @@ import numbers
 
 import numpy as np
 
-__all__ = ["check_bool", "check_index", "check_positive_int", "check_real", "check_time_grid", "first_entry",
-           "real_array"]
+__all__ = ["ArgumentError", "check_bool", "check_index", "check_positive_int", "check_real", "check_time_grid",
+           "first_entry", "real_array"]
+
+
+class ArgumentError(ValueError):
+    """A refused argument: a ``ValueError`` whose message names the argument, the bad value and the valid range, and
+    which also says which argument it was (``argument``, as the signature spells it), for a caller that maps the
+    arguments to its own fields (a form, a request) without reading the message."""
+
+    def __init__(self, argument: str, message: str) -> None:
+        super().__init__(message)
+        self.argument = argument
 
 
 def check_real(name: str, value: object, *, positive: bool = False, nonzero: bool = False,

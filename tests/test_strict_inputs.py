@@ -10,6 +10,7 @@ from linkage import Chain, ConfigurationError
 from linkage.ambient import integrate_ambient
 from linkage.motion import free_motion
 from manifold import Precision, ScipyStepper, StartCheck, TaylorStepper, solve_chart_exp_ode
+from manifold.validation import ArgumentError
 
 from .conftest import unit_speed_start
 
@@ -190,3 +191,21 @@ def test_a_motion_takes_real_times_only_and_no_times_at_all(start):
     for bad in ("1", True, 1j):
         with pytest.raises(TypeError, match="t must be a real time or an array of times"):
             motion(bad)
+
+
+@pytest.mark.parametrize("args, kwargs, argument", [
+    ((4, 4.5), {}, "L"),  # an empty space: L is the side too long
+    (((1.0, 5.0, 1.0), 2.0), {}, "lengths"),  # an empty space: a rod is
+    ((1, 0.5), {}, "lengths"),
+    (((1.0, -1.0), 1.0), {}, "lengths"),
+    ((4, np.nan), {}, "L"),
+    ((4, 2.6), {"hinge_masses": 0.0}, "hinge_masses"),
+    ((4, 2.6), {"hinge_masses": [1.0, 2.0]}, "hinge_masses"),
+    ((4, 2.6), {"rod_densities": -1.0}, "rod_densities"),
+])
+def test_a_refused_chain_says_which_argument(args, kwargs, argument):
+    # a caller that maps the arguments to its own fields (the explorer's requests) reads the argument, not the message
+    with pytest.raises(ArgumentError) as refused:
+        Chain(*args, **kwargs)
+    assert refused.value.argument == argument
+    assert isinstance(refused.value, ValueError) and argument in str(refused.value)

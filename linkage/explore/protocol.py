@@ -23,6 +23,7 @@ from manifold.budget import Budget
 from manifold.options import DEFAULT_START, Precision, SaveAt
 from manifold.progress import ProgressUpdate
 from manifold.solution import SolveStatus
+from manifold.validation import ArgumentError
 
 from ..chain import Chain
 from ..constraints import HingeConstraints, start_state
@@ -40,6 +41,8 @@ PRECISIONS = {"float64": 1.0, "longdouble": 4.0, "real128": 60.0}
 
 #: Fields that describe the chain (every request that needs one).
 CHAIN_FIELDS = ("lengths", "L", "masses")
+#: The request field of each argument of :class:`~linkage.chain.Chain` that names a refusal.
+CHAIN_ARGUMENT_FIELDS = {"lengths": "lengths", "L": "L", "hinge_masses": "masses"}
 #: Fields of a motion request (``POST /api/motion``).
 MOTION_FIELDS = (*CHAIN_FIELDS, "hinges", "velocity", "T", "method", "precision", "samples")
 
@@ -190,10 +193,8 @@ def parse_chain(body: dict[str, Any], limits: Limits) -> Chain:
         raise RequestError("masses", f"hinge masses must be > 0, got {masses!r}")
     try:
         chain = Chain(rods, L, hinge_masses=weights)
-    except ValueError as err:  # masses out of range, or an empty space: the message names the side that is too long
-        message = str(err)
-        field = "masses" if message.startswith("hinge_masses") else "L" if "empty: L =" in message else "lengths"
-        raise RequestError(field, message) from None
+    except ArgumentError as err:  # masses out of range, or an empty space (the side too long: L or a rod)
+        raise RequestError(CHAIN_ARGUMENT_FIELDS.get(err.argument, err.argument), str(err)) from None
     return chain
 
 
