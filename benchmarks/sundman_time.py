@@ -8,8 +8,9 @@
    event at ``t = T``;
 2. the same in real128 at n = 4 over T = 20: steps and CPU time of each, three rounds (plain first in each);
 3. the chart equations (:class:`manifold.geodesic_system.SymbolicPieces`) of the best chart of each of
-   three starts, up to its first switch event (threshold ``q_out = 0.05``, so that a chart is kept long):
-   steps in ``t`` and in ``tau`` with ``det M`` of the chart's hinges.
+   three starts, up to its first switch event (threshold ``q_out = 0.05``, so that a chart is kept long) or
+   t = 100: steps in ``t`` and in ``tau`` with ``det M`` of the chart's hinges.  No wrap events: heyoka's
+   integrators in the library wrap the circle angle between steps, and the equations are periodic in it.
 
 Each line also prints how far apart the two end states are (both runs at heyoka's default tolerance).
 The step of a Taylor method is limited by the nearest singularity of the solution in complex time;
@@ -126,17 +127,20 @@ def chart_steps(seeds: tuple[int, ...] = (0, 1, 2), q_out: float = 0.05) -> list
         i, a0 = atlas.best_chart(p0)
         c0 = atlas.charts[i].coefficients(a0, v0)
         pars = Layout.of(family).pack([chain.L], np.eye(n - 1), q_out, float)
-        events = heyoka_events(pieces.events(), False, float)
+        # switch events only: the library's heyoka integrators wrap angles between steps, and a wrap event here
+        # would end the run at a wrap and call it the first switch
+        events = heyoka_events(pieces.events(wraps=False), False, float)
         plain = hy.taylor_adaptive(equations, np.concatenate([a0, c0]), compact_mode=True, t_events=events)
         plain.pars[:] = pars[: len(plain.pars)]
-        steps_t = plain.propagate_until(100.0)[3]  # q_out = 0.05 switches well before t = 100 from these starts
+        outcome, _, _, steps_t, *_ = plain.propagate_until(100.0)
+        ended = "no switch before" if outcome == hy.taylor_outcome.time_limit else "first switch at"
         sundman = hy.taylor_adaptive(tau_equations, np.concatenate([a0, c0, [0.0]]), compact_mode=True,
                                      t_events=events + [hy.t_event(t - plain.time)])
         sundman.pars[:] = pars[: len(sundman.pars)]
         steps_tau = sundman.propagate_until(1e12)[3]
         gap = float(np.max(np.abs(sundman.state[:-1] - plain.state)))
         rows.append((steps_t, steps_tau))
-        print(f"  start {seed}, chart {i}: first switch at t = {plain.time:.3f}: {steps_t} steps in t, {steps_tau} "
+        print(f"  start {seed}, chart {i}: {ended} t = {plain.time:.3f}: {steps_t} steps in t, {steps_tau} "
               f"in tau; end states {gap:.1e} apart")
     return rows
 
