@@ -105,7 +105,8 @@ def hinge_real128(T: float = 20.0, rounds: int = 3) -> list:
 
 
 def chart_steps(seeds: tuple[int, ...] = (0, 1, 2), q_out: float = 0.05) -> list:
-    """Section 3: chart equations from the study's starts to the first switch event, in ``t`` and ``tau``."""
+    """Section 3: chart equations from the study's starts to the first switch event or t = 100, in ``t`` and
+    ``tau``."""
     n = 4
     family = SuspensionFamily(n)
     pieces = SymbolicPieces(family, float)
@@ -133,7 +134,12 @@ def chart_steps(seeds: tuple[int, ...] = (0, 1, 2), q_out: float = 0.05) -> list
         plain = hy.taylor_adaptive(equations, np.concatenate([a0, c0]), compact_mode=True, t_events=events)
         plain.pars[:] = pars[: len(plain.pars)]
         outcome, _, _, steps_t, *_ = plain.propagate_until(100.0)
-        ended = "no switch before" if outcome == hy.taylor_outcome.time_limit else "first switch at"
+        if outcome == hy.taylor_outcome.time_limit:
+            ended = "no switch before"
+        elif int(outcome) < 0 and -int(outcome) - 1 < len(events):  # heyoka: terminal event i ends as -i - 1
+            ended = "first switch at"
+        else:
+            raise RuntimeError(f"the run in t stopped with {outcome} at t = {plain.time}")
         sundman = hy.taylor_adaptive(tau_equations, np.concatenate([a0, c0, [0.0]]), compact_mode=True,
                                      t_events=events + [hy.t_event(t - plain.time)])
         sundman.pars[:] = pars[: len(sundman.pars)]

@@ -189,15 +189,17 @@ def flag_variants(n: int, T: float) -> list[dict]:
     cache_was = hy.llvm_state.get_diskcache_enabled()
     hy.llvm_state.set_diskcache_enabled(False)
     rows = []
-    for name, lanes, flags in variants:
-        hy.llvm_state.clear_memcache()
-        c0 = time.process_time()
-        if lanes == 1:
-            ta = hy.taylor_adaptive(equations, Y[0], compact_mode=compact, **flags)
-        else:
-            ta = hy.taylor_adaptive_batch(equations, np.zeros((Y.shape[1], lanes)), compact_mode=compact, **flags)
-        rows.append({"name": name, "lanes": lanes, "ta": ta, "cold": time.process_time() - c0, "cpu": np.inf})
-    hy.llvm_state.set_diskcache_enabled(cache_was)
+    try:
+        for name, lanes, flags in variants:
+            hy.llvm_state.clear_memcache()
+            c0 = time.process_time()
+            if lanes == 1:
+                ta = hy.taylor_adaptive(equations, Y[0], compact_mode=compact, **flags)
+            else:
+                ta = hy.taylor_adaptive_batch(equations, np.zeros((Y.shape[1], lanes)), compact_mode=compact, **flags)
+            rows.append({"name": name, "lanes": lanes, "ta": ta, "cold": time.process_time() - c0, "cpu": np.inf})
+    finally:
+        hy.llvm_state.set_diskcache_enabled(cache_was)
 
     def run(ta: Any, lanes: int) -> np.ndarray:
         npars, ends = len(ta.pars), []

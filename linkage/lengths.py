@@ -16,9 +16,11 @@ from manifold.validation import ArgumentError, check_real
 def validate_lengths(lengths: ArrayLike, L: object) -> tuple[NDArray, float]:
     """Check link lengths and base; return ``(lengths as float array, float(L))``.
 
-    Raises :class:`~manifold.validation.ArgumentError` (a ``ValueError``) naming the argument, the bad value and
-    the valid range: ``lengths`` a 1-D sequence of at least two finite numbers ``> 0``, ``L`` a
-    finite number ``> 0``.
+    Raises
+    ------
+    manifold.validation.ArgumentError
+        A ``ValueError`` naming the argument (``argument``: ``"lengths"`` or ``"L"``), the bad value and the valid
+        range: ``lengths`` a 1-D sequence of at least two finite numbers ``> 0``, ``L`` a finite number ``> 0``.
     """
     try:
         raw = np.asarray(lengths)

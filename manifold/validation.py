@@ -18,8 +18,21 @@ __all__ = ["ArgumentError", "check_bool", "check_index", "check_positive_int", "
 
 class ArgumentError(ValueError):
     """A refused argument: a ``ValueError`` whose message names the argument, the bad value and the valid range, and
-    which also says which argument it was (``argument``, as the signature spells it), for a caller that maps the
-    arguments to its own fields (a form, a request) without reading the message."""
+    which also says which argument it was, for a caller that maps the arguments to its own fields (a form, a
+    request) without reading the message.
+
+    Parameters
+    ----------
+    argument
+        The refused argument's name, as the refusing function's signature spells it.
+    message
+        The whole message.
+
+    Attributes
+    ----------
+    argument
+        As given.
+    """
 
     def __init__(self, argument: str, message: str) -> None:
         super().__init__(message)

@@ -41,7 +41,7 @@ PRECISIONS = {"float64": 1.0, "longdouble": 4.0, "real128": 60.0}
 
 #: Fields that describe the chain (every request that needs one).
 CHAIN_FIELDS = ("lengths", "L", "masses")
-#: The request field of each argument of :class:`~linkage.chain.Chain` that names a refusal.
+#: The request field of each argument of :class:`~linkage.chain.Chain` that a request sets (and a refusal can name).
 CHAIN_ARGUMENT_FIELDS = {"lengths": "lengths", "L": "L", "hinge_masses": "masses"}
 #: Fields of a motion request (``POST /api/motion``).
 MOTION_FIELDS = (*CHAIN_FIELDS, "hinges", "velocity", "T", "method", "precision", "samples")
@@ -194,7 +194,7 @@ def parse_chain(body: dict[str, Any], limits: Limits) -> Chain:
     try:
         chain = Chain(rods, L, hinge_masses=weights)
     except ArgumentError as err:  # masses out of range, or an empty space (the side too long: L or a rod)
-        raise RequestError(CHAIN_ARGUMENT_FIELDS.get(err.argument, err.argument), str(err)) from None
+        raise RequestError(CHAIN_ARGUMENT_FIELDS[err.argument], str(err)) from None
     return chain
 
 
