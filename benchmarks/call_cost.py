@@ -58,14 +58,14 @@ def bare(chain, h0, w0, T: float | np.ndarray, tol: float | None = None):
     parameters, returning the end state; ``propagate_grid(T)`` if ``T`` is an array of times, returning the states
     at those times."""
     from linkage.constraints import ChainSystem
-    from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
+    from manifold.constrained import compiled_constrained, default_compact_mode
+
+    from .starts import completed_starts
 
     system = ChainSystem(chain)
     comp = compiled_constrained(system)
-    xs, vs, _, alphas = ConstrainedGeometry(system, float).start(chain.to_point(h0)[None, :],
-                                                                 chain.to_point(w0)[None, :], np.max(T), 1.0)
-    y0 = np.concatenate([xs[0], vs[0]])
-    pars = comp.layout.pack(system, float(alphas[0]), float)
+    states, parameters = completed_starts(chain, chain.to_point(h0)[None, :], chain.to_point(w0)[None, :], np.max(T))
+    y0, pars = states[0], parameters[0]
 
     def run() -> np.ndarray:
         with comp.integrator(float, tol, True, default_compact_mode(system, float)) as ta:

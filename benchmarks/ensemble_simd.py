@@ -58,23 +58,22 @@ from linkage import Chain
 from linkage.constraints import ChainSystem, start_states
 from linkage.motion import free_motion, free_motions
 from manifold import SaveAt, StartCheck
-from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
+from manifold.constrained import compiled_constrained, default_compact_mode
 from manifold.constrained_batch import DEFAULT_WIDTHS
 
 from .ensemble_speed import starts
+from .starts import completed_starts
 
 
 def bare(chain: Chain, H: np.ndarray, V: np.ndarray, T: float, lanes: int) -> Callable[[], np.ndarray]:
     """heyoka alone on the compiled equations of ``free_motions``: ``lanes`` per integrator (1: scalar)."""
     system = ChainSystem(chain)
     _, X0, V0, _ = start_states(chain, H, V, T, StartCheck())
-    geo = ConstrainedGeometry(system, float)
-    X, W, _, alpha = geo.start(X0, V0, T, 1.0)
+    start, rows = completed_starts(chain, X0, V0, T)
+    pars = rows.T  # a column per start, as heyoka's batch takes them
     comp = compiled_constrained(system)
     compact = default_compact_mode(system, float)
-    pars = np.repeat(comp.layout.pack(system, 0.0, float)[:, None], len(X), axis=1)
-    pars[0] = alpha
-    start = np.concatenate([X, W], axis=1)
+    N = start.shape[1] // 2
 
     def run() -> np.ndarray:
         ends = np.empty_like(start)
@@ -86,7 +85,7 @@ def bare(chain: Chain, H: np.ndarray, V: np.ndarray, T: float, lanes: int) -> Ca
                     ta.pars[:] = pars[: len(ta.pars), k]
                     ta.propagate_until(T)
                     ends[k] = ta.state
-            return ends[:, :geo.N]
+            return ends[:, :N]
         with comp.batch_integrator(lanes, None, compact) as ta:
             for i in range(0, len(start), lanes):
                 fill = [min(k, len(start) - 1) for k in range(i, i + lanes)]
@@ -95,7 +94,7 @@ def bare(chain: Chain, H: np.ndarray, V: np.ndarray, T: float, lanes: int) -> Ca
                 ta.pars[:] = pars[: len(ta.pars), fill]
                 ta.propagate_until(T)
                 ends[i: i + lanes] = ta.state.T[: len(start) - i]
-        return ends[:, :geo.N]
+        return ends[:, :N]
     return run
 
 

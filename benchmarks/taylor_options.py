@@ -47,9 +47,10 @@ from linkage.motion import free_motion
 from linkage.time_factor import ChainTimeFactor
 from manifold import Precision, SaveAt, TaylorStepper, compiled, solve_chart_exp_ode
 from manifold.ambient_velocity import ConstrainedVelocity
-from manifold.constrained import ConstrainedGeometry, compiled_constrained, default_compact_mode
+from manifold.constrained import compiled_constrained, default_compact_mode
 from manifold.sundman import SundmanStepper
 
+from .starts import completed_starts
 from .study.experiments import generic_start
 
 COMPACT_OPTIONS = [(True, 3), (True, 2), (True, 1), (True, 0)]
@@ -169,12 +170,11 @@ def hinge_problem(n: int, count: int, T: float) -> tuple[list, np.ndarray, np.nd
     """The hinge method's equations (Baumgarte-stabilised, as ``free_motion`` and ``free_motions`` integrate
     them), ``count`` start states (rows) and their runtime parameters (rows), from the study's generic starts
     (seeds ``0 .. count - 1`` on the chain of seed 0), and the method's default compact mode."""
-    system = ChainSystem(generic_start(n)[0])
-    comp, geo = compiled_constrained(system), ConstrainedGeometry(system, float)
+    chain = generic_start(n)[0]
+    system = ChainSystem(chain)
     starts = [generic_start(n, seed)[1:] for seed in range(count)]
-    xs, vs, _, alphas = geo.start(np.array([p for p, _ in starts]), np.array([v for _, v in starts]), T, 1.0)
-    pars = np.array([comp.layout.pack(system, float(a), float) for a in alphas])
-    return comp.pieces(float).equations(True), np.concatenate([xs, vs], axis=1), pars, default_compact_mode(system, float)
+    states, pars = completed_starts(chain, np.array([p for p, _ in starts]), np.array([v for _, v in starts]), T)
+    return compiled_constrained(system).pieces(float).equations(True), states, pars, default_compact_mode(system, float)
 
 
 def flag_variants(n: int, T: float) -> list[dict]:
