@@ -189,7 +189,8 @@ def test_best_chart_is_well_conditioned_at_folds(n, gap):
             p = chart.get_point(a)
             i, a_best = atlas.best_chart(p)
             s = np.linalg.svd(atlas.charts[i].jacobian(a_best), compute_uv=False)
-            assert atlas.qualities(p).max() >= atlas.quality_floor
+            # the folded triples attain the floor: their qualities meet it to rounding (2.8e-12 short at gap 1e-12)
+            assert atlas.qualities(p).max() >= atlas.quality_floor - 1e-9
             assert s[-1] / s[0] >= 0.05, (order, a, i, s)  # measured >= 0.064 over n <= 8
 
 

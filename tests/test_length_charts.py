@@ -211,12 +211,22 @@ def test_inverse_round_trip_where_the_chart_is_good(case):
 @given(cases())
 @example(((np.array([1.5, 1.078125, 2.8475746663123274, 1, 1, 1]), 6.4256998663123275), np.array([0, 0, -HALF_PI, 0]),
           np.arange(6)))  # 2e-7 above the lower end: the inverse's polar asin lost 1.2e-12 of the equator's latitudes
+@example(((np.array([1.00000002, 1.0, 1.0]), 1.0), np.array([1e-9]), np.arange(3)))  # 2e-8 above the lower end,
+# |J| = 1.5e8: the polish's wrap of t rounded t = 1e-9 to a multiple of ulp(pi) and undid it (3.7e-11 off)
 def test_point_round_trip_everywhere_including_poles(case):
     """``get_point(get_parameters(p)) = p`` on the singular set too (backward stability)."""
     (ls, L), a, order = case
     chart = SuspensionChart(ls, L, chart_order(ls, L, order))
     p = chart.get_point(a)
     assert np.abs(chart.get_point(chart.get_parameters(p)) - p).max() <= 1e-12 * ls.sum()
+
+
+def test_the_parameter_clamp_wraps_t_and_keeps_a_small_one_exact():
+    chart = SuspensionChart(np.array([1.0, 2.0, 1.5, 2.5]), 6.0)
+    small = np.array([0.25, -0.5, 1e-9])
+    assert np.array_equal(chart.clamp_parameters(small), small)  # no round trip through pi
+    wrapped = chart.clamp_parameters(np.array([[2.0, 0.0, 4.0], [0.0, 0.0, -np.pi], [0.0, 0.0, np.pi]]))
+    assert np.allclose(wrapped, [[HALF_PI, 0.0, 4.0 - 2 * np.pi], [0.0, 0.0, -np.pi], [0.0, 0.0, -np.pi]], atol=1e-15)
 
 
 @given(cases(3, 6, ends=False))
