@@ -96,3 +96,18 @@ def test_bad_input_is_refused_by_name():
     path = chain.path(H[0], H[1])
     with pytest.raises(ValueError, match="s must lie in"):
         path(1.5)
+
+
+def test_a_path_ends_exactly_at_its_configurations_even_near_a_wall():
+    # found by the stress profile: the second configuration has a fan triangle 3.3e-7 from flat (L = 0.001), where
+    # rebuilding it from its own diagonals amplified their 4e-16 rounding to 1.7e-11 in the hinges
+    ls, L = np.array([1.0, 1.0, 1.0, 1.0, 0.125, 2.0]), 0.001000001
+    chain = Chain(ls, L)
+    H = _configurations(chain, -np.ones((2, chain.n - 1), dtype=int), 892)
+    assert chain.diagonal_space().slacks(chain.diagonals(H[1])[0]).min() < 1e-6  # the hard region, as found
+    path = chain.path(H[0], H[1])
+    assert np.array_equal(path(0.0), H[0]) and np.array_equal(path(1.0), H[1])
+    assert np.array_equal(path(np.array([1.0, 0.0])), H[::-1])
+    # and the path stays continuous into its ends: the points next to them are as close as the rebuild allows
+    near = path(np.array([1e-12, 1 - 1e-12]))
+    assert np.abs(near - H).max() <= 1e-9
