@@ -79,11 +79,10 @@ def nested(levels: int, fn: Callable[[], Any]) -> Any:
     return next(map(lambda _: nested(levels - 1, fn), (None,)))
 
 
-def batches(n: int, lanes: int, compact: bool | None, T: float) -> tuple[Callable[[], tuple[int, list]], str]:
-    """The loop of batch solves (returning the stack's phase where it calls heyoka, and the end states) and its
-    label."""
-    equations, Y, P, default = hinge_problem(n, COUNT, T)
-    compact = default if compact is None else compact
+def batches(problem: tuple, lanes: int, compact: bool, T: float) -> Callable[[], tuple[int, list]]:
+    """The loop of batch solves of ``problem`` (:func:`~benchmarks.taylor_options.hinge_problem`'s equations, starts
+    and parameters) to ``T``, returning the stack's phase where it calls heyoka and the end states."""
+    equations, Y, P, _ = problem
     ta = hy.taylor_adaptive_batch(equations, np.zeros((Y.shape[1], lanes)), compact_mode=compact)
     npars = len(ta.pars)
     grid = np.ascontiguousarray(np.repeat(np.array([0.0, T])[:, None], lanes, axis=1))
@@ -100,13 +99,13 @@ def batches(n: int, lanes: int, compact: bool | None, T: float) -> tuple[Callabl
             ends.append(np.array(ta.state))
         return phase, ends
 
-    return run, f"n = {n}, {lanes} lanes, {'compact' if compact else 'unrolled'}"
+    return run
 
 
-def scalar_loop(n: int, T: float, rounds: int) -> float:
-    """CPU seconds of heyoka's scalar integrator of the same equations over the same starts, one after the other
+def scalar_loop(problem: tuple, T: float, rounds: int) -> float:
+    """CPU seconds of heyoka's scalar integrator of ``problem``'s equations over its starts, one after the other
     (the fastest of ``rounds``): what a batch's speed-up is counted against."""
-    equations, Y, P, compact = hinge_problem(n, COUNT, T)
+    equations, Y, P, compact = problem
     ta = hy.taylor_adaptive(equations, Y[0], compact_mode=compact)
     npars, best = len(ta.pars), np.inf
     for _ in range(rounds):
@@ -169,9 +168,13 @@ def main() -> None:
     print(f"heyoka {hy.__version__}, SIMD width {width}; {COUNT} starts to T = {args.T:g}; CPU time (ms) of the "
           f"thread at each stack phase (mod {ALIGNMENT}), fastest of {args.rounds}")
     for n in args.n:
-        print(f"  n = {n}: heyoka's scalar loop over the same starts {1e3 * scalar_loop(n, args.T, args.rounds):.2f} ms")
-        for lane_count, compact in [*((k, None) for k in lanes), (8, True)]:
-            run, label = batches(n, lane_count, compact, args.T)
+        problem = hinge_problem(n, COUNT, args.T)  # built once: every row integrates the same starts
+        default = problem[3]  # the hinge method's compile mode (compact or not) at this n
+        print(f"  n = {n}: heyoka's scalar loop over the same starts "
+              f"{1e3 * scalar_loop(problem, args.T, args.rounds):.2f} ms")
+        for lane_count, compact in [*((k, default) for k in lanes), (8, True)]:
+            run = batches(problem, lane_count, compact, args.T)
+            label = f"n = {n}, {lane_count} lanes, {'compact' if compact else 'unrolled'}"
             show(label, "main thread", scan(run, args.rounds))
             found: dict = {}
             worker = threading.Thread(target=lambda: found.update(scan(run, args.rounds)))

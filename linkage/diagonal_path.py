@@ -54,15 +54,15 @@ class DiagonalPath:
         The flip vector of each piece, ``(m, n-1)``; consecutive pieces differ in at most one flip,
         changed at a corner where that triangle is flat.
     ends
-        The configurations joined, ``(2, n-1)`` complex, returned exactly at ``s = 0`` and ``s = 1`` (``None``: the
-        ends rebuilt from the corners, like every other point).  Rebuilding a configuration from its own diagonals
-        amplifies their rounding near a wall: at a triangle slack of 3e-7 (``L = 0.001``) by 4e4, to 1.7e-11.
+        The configurations joined, ``(2, n-1)`` complex, returned exactly at ``s = 0`` and ``s = 1`` rather than
+        rebuilt from the end corners: rebuilding a configuration from its own diagonals amplifies their rounding
+        near a wall, at a triangle slack of 3e-7 (``L = 0.001``) by 4e4, to 1.7e-11.
     """
 
     space: DiagonalSpace
     corners: NDArray
     flips: NDArray
-    ends: NDArray | None = None
+    ends: NDArray
 
     @property
     def lengths(self) -> NDArray:
@@ -88,10 +88,9 @@ class DiagonalPath:
         frac = np.clip((at - ends[piece]) / span, 0.0, 1.0)[:, None]
         x = (1 - frac) * self.corners[piece] + frac * self.corners[piece + 1]
         hinges = from_diagonals(self.space.lengths, self.space.L, x, self.flips[piece])
-        if self.ends is not None:
-            flat = ss.ravel()
-            hinges[flat == 0.0] = self.ends[0]
-            hinges[flat == 1.0] = self.ends[1]
+        flat = ss.ravel()
+        hinges[flat == 0.0] = self.ends[0]
+        hinges[flat == 1.0] = self.ends[1]
         return hinges.reshape(*ss.shape, -1)
 
 

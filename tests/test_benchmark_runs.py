@@ -60,7 +60,8 @@ def test_simd_stack_phase_moves_the_stack_and_changes_no_digit():
                          for level in range(4)])
     # each level calls through one more C frame of the interpreter: the stack (growing down) is deeper every time
     assert np.all(np.diff(pointers) < 0), pointers
-    run, label = simd_stack_phase.batches(4, 8, None, 0.2)
+    problem = taylor_options.hinge_problem(4, simd_stack_phase.COUNT, 0.2)
+    run = simd_stack_phase.batches(problem, 8, problem[3], 0.2)
     out = simd_stack_phase.scan(run, rounds=1)
     # wherever the stack stands, the batch computes the same numbers to the last bit
-    assert out["same"], label
+    assert out["same"]
