@@ -8,7 +8,7 @@ import heyoka as hy
 import numpy as np
 import pytest
 
-from benchmarks import call_cost, ensemble_simd, simd_stack_phase, taylor_options
+from benchmarks import call_cost, chart_scaling, ensemble_simd, simd_stack_phase, taylor_options
 from benchmarks.study.experiments import generic_start
 from linkage.motion import free_motion
 from manifold import SaveAt
@@ -65,3 +65,17 @@ def test_simd_stack_phase_moves_the_stack_and_changes_no_digit():
     out = simd_stack_phase.scan(run, rounds=1)
     # wherever the stack stands, the batch computes the same numbers to the last bit
     assert out["same"]
+
+
+def test_chart_scaling_sorts_nodes_by_the_cost_of_their_recursion():
+    """A system whose nodes are known by hand: x y, x / y, sqrt(x), 1 / y, sin y and cos y (one pair of nodes),
+    atan2(x, y) with its two squares, and x x are products of series; p0 x, x / p1, 2 y and the constant 3 p2 are
+    scaled; the rest are sums."""
+    x, y = hy.make_vars("x", "y")
+    f = [x * y + hy.par[0] * x + hy.sin(y) + 3.0 * hy.par[2],
+         x / y + hy.sqrt(x) + hy.atan2(x, y) + x * x + 2.0 * y + x / hy.par[1] + 1.0 / y]
+    ta = hy.taylor_adaptive(list(zip((x, y), f)), [1.0, 2.0], compact_mode=True)
+    kinds = chart_scaling.node_kinds(ta.decomposition, 2)
+    assert kinds["series"] == 10 and kinds["scaled"] == 4 and kinds["other"] == 0
+    # every other node is a sum: 4 are the variables and outputs, 8 the series' own nodes (the squares sit in a sum)
+    assert kinds["sums"] == len(ta.decomposition) - 4 - 8 - 4
