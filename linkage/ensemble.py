@@ -129,7 +129,7 @@ def free_motions(
     velocities0: ArrayLike,
     t_final: float,
     *,
-    method: str = "hinges",
+    method: str = "auto",
     save: SaveAt = DEFAULT_SAVE,
     precision: Precision = DEFAULT_PRECISION,
     backend: str = "serial",
@@ -146,9 +146,10 @@ def free_motions(
     from the same start (to rounding: the batch integrator takes the same
     steps); only where the work runs changes:
 
-    * ``method="hinges"`` in float64 with Baumgarte stabilisation (the
-      default): heyoka's SIMD batch integrators, ``batch_size`` trajectories
-      per step (:func:`manifold.constrained_batch.solve_constrained_ensemble`);
+    * ``method="hinges"`` in float64 with Baumgarte stabilisation (what
+      ``"auto"``, the default, stands for but on a nearly stretched chain):
+      heyoka's SIMD batch integrators, ``batch_size`` trajectories per step
+      (:func:`manifold.constrained_batch.solve_constrained_ensemble`);
     * any other method or option: single solves, one after the other in each chunk.
 
     Parameters
@@ -162,7 +163,10 @@ def free_motions(
     t_final
         Final time (finite, nonzero; negative integrates backward), the same for all.
     method
-        ``"hinges"`` (default) or ``"charts"``.
+        ``"auto"`` (default), ``"hinges"`` or ``"charts"``.  ``"auto"`` is the method
+        :func:`~linkage.motion.free_motion` takes by default (:func:`~linkage.motion.choose_method`): the hinges,
+        except on a nearly stretched chain with an atlas, where they lose digits, and where an option only the
+        charts take is given.
     save
         :class:`manifold.SaveAt` ``(t_eval)``: times (within ``[0, t_final]``, in integration order) at which
         to keep every trajectory's state; nothing else is kept (no dense output: ``SaveAt(dense=True)`` is refused).
@@ -197,10 +201,10 @@ def free_motions(
     EnsembleMotion
         End states, states on ``t_eval``, energy errors, steps and a status per trajectory.
     """
-    from .motion import METHODS  # the methods of free_motion; motion re-exports this module
+    from .motion import AUTO, METHODS, choose_method  # free_motion's methods; motion re-exports this module
 
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if method not in (*METHODS, AUTO):
+        raise ValueError(f"method must be one of {(*METHODS, AUTO)}, got {method!r}")
     refuse_moved_options("free_motions", kwargs)
     if "throw" in kwargs:
         raise TypeError("free_motions does not take throw=: an ensemble reports a failed trajectory in its status")
@@ -209,6 +213,8 @@ def free_motions(
         raise TypeError("free_motions keeps no dense output: ask for states with save=SaveAt(t_eval=...)")
     _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, start)
     grid = save.grid(t_final)
+    if method == AUTO:
+        method = choose_method(chain, kwargs)
     batchable = (method == "hinges" and set(kwargs) <= BATCH_OPTIONS and precision.fp_type is float
                  and kwargs.get("stabilisation", "baumgarte") == "baumgarte")
     if batchable:

@@ -208,6 +208,18 @@ class _subset:
         self.end_hinges, self.end_velocities = ens.end_hinges[mask], ens.end_velocities[mask]
 
 
+def test_the_default_method_is_free_motion_s():
+    """``method="auto"``, as in ``free_motion``: the hinges in SIMD batches on a generic chain, the charts (single
+    solves in Sundman's time) on a nearly stretched one, each trajectory the one ``free_motion``'s default computes."""
+    for chain, method in ((Chain(5, 4.2), "constrained"), (Chain(5, 5 - 1e-4), "sundman")):
+        H, V = _starts(chain, 3, seed=3, pole=False)
+        ts = np.linspace(0, 1.0, 3)
+        ens = free_motions(chain, H, V, 1.0, save=SaveAt(t_eval=ts))
+        singles = _singles(chain, H, V, 1.0, ts)
+        assert method in ens.solution.method and all(method in s.solution.method for s in singles)
+        assert ens.success.all() and _max_gap(ens, singles) <= 1e-12
+
+
 def test_charts_method_keeps_each_failure_to_its_trajectory():
     """Single chart solves per trajectory: too few switches allowed fails some; grid rows after a failure are NaN."""
     chain = Chain(4, 3.5)  # these starts switch 0, 2 or 3 times by T = 12
