@@ -42,11 +42,8 @@ from manifold.validation import check_positive_int, check_real
 from .chain import Chain
 from .diagonal_path import DiagonalPath
 from .constraints import ChainSystem, HingeConstraints, HingeStart, start_state
+from .motion import AUTO, METHODS, choose_method
 from .time_factor import ChainTimeFactor
-
-#: Where a geodesic with quantities carried along it is integrated: in hinge coordinates (any generic lengths) or
-#: in the suspension atlas (where the chain has one), as :func:`linkage.motion.free_motion`'s methods.
-METHODS = ("hinges", "charts")
 
 __all__ = ["CarriedMotion", "JacobiFieldMotion", "LogResult", "TransportedVectors", "distance", "exp",
            "jacobi_field", "log", "parallel_transport", "tangent_basis"]
@@ -142,8 +139,8 @@ def checked_start(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: flo
                   start: StartCheck, method: str) -> tuple[HingeStart, NDArray | None]:
     """The start of a solve with terms carried by ``method``, checked once (:func:`linkage.constraints.start_state`,
     the time named ``T``), and the grid of ``save`` (or ``None``: every step)."""
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if method not in (*METHODS, AUTO):
+        raise ValueError(f"method must be one of {(*METHODS, AUTO)}, got {method!r}")
     save = check_group("save", save, SaveAt)
     if not save.keeps_dense(True):
         raise TypeError("the carried values are read from dense output: save=SaveAt(dense=False) is not taken")
@@ -156,6 +153,8 @@ def _solve(start: HingeStart, term: CarriedTerm, grid: NDArray | None, precision
     """Integrate from a checked start with ``term`` carried, by ``method``; the solution and its sample times."""
     precision = check_group("precision", precision, Precision)
     chain, x0, v0, T = start.constraints.chain, start.x0, start.v0, start.t_final
+    if method == AUTO:
+        method = choose_method(chain, options)
     if method == "hinges":
         carried = solve_carried(ChainSystem(chain), x0, v0, T, [term], precision=precision, **options)
     else:
@@ -226,7 +225,7 @@ def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, 
 
 @takes_option_groups
 def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, vectors0: ArrayLike, T: float, *,
-                       save: SaveAt = DEFAULT_SAVE, precision: Precision = DEFAULT_PRECISION, method: str = "hinges",
+                       save: SaveAt = DEFAULT_SAVE, precision: Precision = DEFAULT_PRECISION, method: str = AUTO,
                        start: StartCheck = DEFAULT_START, **options: Any) -> TransportedVectors:
     """Transport tangent vectors parallel along the geodesic from ``(hinges0, velocity0)`` for the time ``T``.
 
@@ -253,7 +252,10 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
     precision
         :class:`manifold.Precision` ``(fp_type, tol)``: the working precision and heyoka's tolerance.
     method
-        ``"hinges"`` (default): in hinge coordinates with the rod constraints
+        ``"auto"`` (default): the method :func:`~linkage.motion.free_motion` takes by default
+        (:func:`~linkage.motion.choose_method`: the hinges, except on a nearly stretched chain with an atlas,
+        where they lose digits, and where an option only the charts take is given).
+        ``"hinges"``: in hinge coordinates with the rod constraints
         (:func:`manifold.carried.solve_carried`; any generic lengths).  ``"charts"``: the geodesic in the
         suspension atlas, in Sundman's time with the state ``(a, J c)``, the vectors carried in hinge space
         beside it (:class:`manifold.ambient_velocity.ChartCarried` after the state of
@@ -281,7 +283,7 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
 @takes_option_groups
 def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0: ArrayLike, derivative0: ArrayLike,
                  T: float, *, save: SaveAt = DEFAULT_SAVE, precision: Precision = DEFAULT_PRECISION,
-                 method: str = "hinges", start: StartCheck = DEFAULT_START, checked: bool = True,
+                 method: str = AUTO, start: StartCheck = DEFAULT_START, checked: bool = True,
                  **options: Any) -> JacobiFieldMotion:
     """The Jacobi field along the geodesic from ``(hinges0, velocity0)`` with ``J(0) = field0``, ``D_t J(0) = derivative0``.
 

@@ -39,6 +39,7 @@ from manifold.precision import unit_roundoff
 from .chain import Chain
 from .constraints import ChainSystem
 from .geometry import checked_start, jacobi_field_from, tangent_basis_at
+from .motion import AUTO
 
 __all__ = ["DEFAULT_THRESHOLD", "Sensitivity", "SensitivityWarning", "sensitivity"]
 
@@ -88,7 +89,7 @@ class Sensitivity:
 
 @takes_option_groups
 def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float, *, save: SaveAt = DEFAULT_SAVE,
-                precision: Precision = DEFAULT_PRECISION, method: str = "hinges", start: StartCheck = DEFAULT_START,
+                precision: Precision = DEFAULT_PRECISION, method: str = AUTO, start: StartCheck = DEFAULT_START,
                 threshold: float = DEFAULT_THRESHOLD, **options: Any) -> Sensitivity:
     """The amplification ``A(t)`` of the linearised flow from ``(hinges0, velocity0)`` over ``T``.
 

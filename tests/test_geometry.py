@@ -21,7 +21,7 @@ from linkage import Chain
 from linkage import geometry
 from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.diagonal_path import DifferentComponentsError
-from linkage.motion import free_motion
+from linkage.motion import choose_method, free_motion
 from linkage.sampling import sample_starts
 from manifold import GeodesicIntegrationError, Precision, SaveAt
 from manifold.carried import solve_carried
@@ -467,6 +467,21 @@ def test_transport_and_jacobi_fields_in_charts_agree_with_hinge_coordinates(wher
          geometry.jacobi_field(chain, h0, v0, 0 * W0[0], W0[0], 10.0, save=SaveAt(t_eval=ts))]
     assert np.abs(J[0].field - J[1].field).max() <= 1e-10 * max(1.0, np.abs(J[1].field).max())
     assert np.abs(J[0].field_derivative - J[1].field_derivative).max() <= 1e-10 * max(1.0, np.abs(J[1].field).max())
+
+
+def test_the_default_method_is_free_motion_s():
+    """``method="auto"``, as in ``free_motion``: transport and Jacobi fields in hinge coordinates on a generic chain,
+    in the atlas (Sundman's time) on a nearly stretched one, where the hinge method loses digits; each the same
+    numbers as the method named."""
+    rng = np.random.default_rng(4)
+    for chain, kind in ((Chain(5, 4.2), "constrained"), (Chain(5, 5 - 1e-4), "sundman")):
+        h0 = sample_starts(chain, 1, 0.5, rng)[0][0]
+        v0, W0 = _unit(chain, _random_tangent(chain, h0, rng)), _random_tangent(chain, h0, rng)
+        named = {"method": choose_method(chain, {})}
+        moved = [geometry.parallel_transport(chain, h0, v0, W0, 0.5, **kw) for kw in ({}, named)]
+        fields = [geometry.jacobi_field(chain, h0, v0, 0 * W0, W0, 0.5, **kw) for kw in ({}, named)]
+        assert kind in moved[0].carried.solution.method and kind in fields[0].carried.solution.method
+        assert np.array_equal(moved[0].vectors, moved[1].vectors) and np.array_equal(fields[0].field, fields[1].field)
 
 
 @pytest.mark.parametrize("scale", [0.0, 1e-20])
