@@ -166,7 +166,7 @@ def free_motions(
         ``"auto"`` (default), ``"hinges"`` or ``"charts"``.  ``"auto"`` is the method
         :func:`~linkage.motion.free_motion` takes by default (:func:`~linkage.motion.choose_method`): the hinges,
         except on a nearly stretched chain with an atlas, where they lose digits, and where an option only the
-        charts take is given.
+        charts take is given; a ``batch_size`` above 1 asks for the hinges' SIMD batches.
     save
         :class:`manifold.SaveAt` ``(t_eval)``: times (within ``[0, t_final]``, in integration order) at which
         to keep every trajectory's state; nothing else is kept (no dense output: ``SaveAt(dense=True)`` is refused).
@@ -213,8 +213,8 @@ def free_motions(
         raise TypeError("free_motions keeps no dense output: ask for states with save=SaveAt(t_eval=...)")
     _, X0, V0, t_final = start_states(chain, hinges0, velocities0, t_final, start)
     grid = save.grid(t_final)
-    if method == AUTO:
-        method = choose_method(chain, kwargs)
+    if method == AUTO:  # a batch size is an option of the hinge method's SIMD batches alone
+        method = choose_method(chain, kwargs) if batch_size in (None, 1) else "hinges"
     batchable = (method == "hinges" and set(kwargs) <= BATCH_OPTIONS and precision.fp_type is float
                  and kwargs.get("stabilisation", "baumgarte") == "baumgarte")
     if batchable:

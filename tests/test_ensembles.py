@@ -218,6 +218,8 @@ def test_the_default_method_is_free_motion_s():
         singles = _singles(chain, H, V, 1.0, ts)
         assert method in ens.solution.method and all(method in s.solution.method for s in singles)
         assert ens.success.all() and _max_gap(ens, singles) <= 1e-12
+    batched = free_motions(chain, H, V, 1.0, save=SaveAt(t_eval=ts), batch_size=2)  # asks for the hinges' batches
+    assert "constrained" in batched.solution.method and batched.solution.batch_size == 2
 
 
 def test_charts_method_keeps_each_failure_to_its_trajectory():
