@@ -28,7 +28,8 @@ honour; CPU, not wall time, so that other jobs on the machine do not count): by 
 default budget (:data:`manifold.budget.DEFAULT_BUDGET`, 300 CPU seconds a solve) allows, so a hang; with a smaller
 ``--hang``, possibly a run the budget would still allow.  Prints per family: cases, successes, honest failures (a status, or a ``ValueError``/``TypeError``
 where the input is bad), refusals of valid input, wrong answers returned as success, other exceptions, slow runs,
-the costliest cases (CPU seconds, and each case above a tenth of ``--hang`` as it ends); and the peak RSS.
+the costliest cases (CPU seconds, and each case above a tenth of ``--hang`` as it ends), the numbers of the first ten
+honest failures (to replay with ``--case``); and the peak RSS.
 ``--count`` scales :data:`SHARES`.
 
 Each case draws from its own seed ``(seed, family, k)`` (the chart and curvature families' shared chain from
@@ -351,6 +352,7 @@ def main() -> None:
     counts = {name: max(1, round(SHARES[name] * args.count / 20000)) for name in families}
     tally: dict[str, collections.Counter] = {name: collections.Counter() for name in CASES}
     examples: dict[str, list[str]] = collections.defaultdict(list)
+    honest: dict[str, list[int]] = collections.defaultdict(list)  # to replay with --case
     t_start = time.perf_counter()
     for name, count in counts.items():
         t0 = time.perf_counter()
@@ -379,6 +381,8 @@ def main() -> None:
             if kind.startswith(("WRONG", "SLOW", "OTHER")) or (kind.startswith("refused") and name in (
                     "any lengths", "chart", "curvature")):  # these starts are valid: a refusal is news
                 examples[name].append(f"case {k}: {outcome}")
+            if kind == "honest failure":
+                honest[name].append(k)
             costs.append((time.process_time() - cpu, k))
             if costs[-1][0] > args.hang / 10:  # as it happens: a long family's slow cases before its end
                 print(f"    {name} case {k}: {costs[-1][0]:.1f} s CPU, {outcome[:120]}", flush=True)
@@ -386,6 +390,9 @@ def main() -> None:
               + ", ".join(f"{k} {v}" for k, v in sorted(tally[name].items())), flush=True)
         for line in examples[name][:5]:
             print(f"    {line}", flush=True)
+        if honest[name]:
+            print(f"    honest failures (--case): {', '.join(map(str, honest[name][:10]))}"
+                  + (" ..." if len(honest[name]) > 10 else ""), flush=True)
         print("    costliest (CPU s, case): " + ", ".join(f"{c:.1f} ({k})" for c, k in sorted(costs)[::-1][:5]),
               flush=True)
     total = sum(sum(c.values()) for c in tally.values())
