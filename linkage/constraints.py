@@ -57,6 +57,11 @@ from .chain import START_CLOSURE_TOLERANCE, Chain
 __all__ = ["ChainSystem", "chain_system", "HingeConstraints", "HingeStart", "start_arguments", "start_state",
            "start_states"]
 
+#: A link shorter than this share of the chain's total length is short: a failed check of the hinge method says so,
+#: and how to hold it (:meth:`ChainSystem.rounding_hint`).  Measured: links of 1e-3 of the others pass, of 1e-4 some
+#: whips fail the float64 energy check (``python -m benchmarks.short_links``).
+SHORT_LINK = 1e-3
+
 #: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
 _PROJECTION_STEPS = 8
 #: Gauss-Newton stops once ``max_k |c_k| <`` this.
@@ -501,6 +506,18 @@ class ChainSystem(ConstrainedSystem):
     def length_scale(self) -> float:
         """The mean rod length (1 for unit rods): the Baumgarte rate is speed / length, an angular rate."""
         return float(np.mean(self.chain.lengths))
+
+    def rounding_hint(self) -> str | None:
+        """Where the shortest link is under :data:`SHORT_LINK` of the chain's total length ``R``: hinge coordinates
+        hold its direction to about ``u R / l`` (``u`` the unit roundoff; its end hinges are rounded to ``u R``), and
+        where it whips round the energy drifts with that (``docs/methods.md``, "Short links"); the remedy."""
+        ratio = float(np.min(self.chain.lengths) / np.sum(self.chain.lengths))
+        if ratio >= SHORT_LINK:
+            return None
+        return (f"the chain's shortest link is {ratio:.2g} of its total length, and hinge coordinates hold its direction "
+                f"only to about u / {ratio:.2g} (u the unit roundoff); a wider type at the same tolerance holds it: "
+                f"precision=Precision(fp_type='longdouble', tol=2.2e-16) (float64's default tolerance) for links down "
+                f"to about 1e-6 of the total, 'real128' below (docs/methods.md, 'Short links')")
 
     @property
     def rounding_scales(self) -> NDArray:

@@ -169,6 +169,12 @@ class ConstrainedSystem(ABC):
         A system whose constraints are relative (a chain's ``|e_k|^2 / l_k^2 - 1``) weighs them back to velocities."""
         return np.ones(self.n_constraints)
 
+    def rounding_hint(self) -> str | None:
+        """What to add to a failed energy or constraint check where this system's coordinates hold some constraint
+        far less well than the others (:attr:`rounding_scales`), and what to do about it; ``None`` (the default):
+        nothing to add.  The solvers append it to the check's message (:func:`verdict`)."""
+        return None
+
     @property
     @abstractmethod
     def metric_matrix(self) -> NDArray:
@@ -879,7 +885,7 @@ def constraint_bound(n_steps: int, eps: float) -> float:
 
 
 def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float, t: float,
-            failure: str | None) -> tuple[SolveStatus, str]:
+            failure: str | None, hint: str | None = None) -> tuple[SolveStatus, str]:
     """How a stretch of a constrained solve ended: the checks in the order every constrained solver applies them.
 
     Parameters
@@ -896,6 +902,8 @@ def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float
         Time reached.
     failure
         Why the integrator stopped early (``None`` if it did not).
+    hint
+        A sentence for a failed energy or constraint check (:meth:`ConstrainedSystem.rounding_hint`), if any.
 
     Returns
     -------
@@ -904,14 +912,15 @@ def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float
         else the energy failure, the constraint failure, an interrupt (:data:`manifold.interrupt.INTERRUPTED`) or
         the stepper failure (in that order).
     """
+    note = "" if hint is None else f"; {hint}"
     if energy_violation is not None:
-        return SolveStatus.ENERGY_CHECK_FAILED, energy_violation
+        return SolveStatus.ENERGY_CHECK_FAILED, energy_violation + note
     bound = constraint_bound(n_steps, eps)
     if not drift <= bound:
         return SolveStatus.CONSTRAINT_CHECK_FAILED, (
             f"constraint check failed by t = {t:.6g}: max_k |c_k| / w_k = {drift:.3g} (w_k >= 1: each constraint's "
             f"rounding floor over the common one) exceeds "
-            f"1000 sqrt(steps + 1) tol = {bound:.3g}")
+            f"1000 sqrt(steps + 1) tol = {bound:.3g}{note}")
     if failure == INTERRUPTED:
         return SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t}"
     if failure == BUDGET:  # the solver words it (manifold.budget.spent_message): it knows the budget and t_final
@@ -1089,7 +1098,7 @@ def solve_constrained(
                 reports.segment(t, "ambient coordinates")
             drift = float(geo.drift(c).max(initial=0.0))
             status, message = verdict(sol.energy_violation(recorded, eps, "ambient coordinates"), drift,
-                                      sol.n_steps, eps, float(t), adv.failure)
+                                      sol.n_steps, eps, float(t), adv.failure, system.rounding_hint())
             for term, sl in zip(carry, slots):
                 violation = carried_violation(term, geo, adv.step_states, first, sl, adv.step_times, sol.n_steps, eps)
                 if status is SolveStatus.SUCCESS and violation is not None:

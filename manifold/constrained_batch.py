@@ -196,7 +196,7 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
     deviations = np.abs(E.reshape(n, -1) - E0[:, None]) / E0[:, None]
     drifts = geo.drift(c).reshape(n, -1)
     errors, status, messages = judge_lanes(deviations, drifts, times, t_reached, steps,
-                                           taylor_relative_tolerance(tol, float), failure)
+                                           taylor_relative_tolerance(tol, float), failure, system.rounding_hint())
     return EnsembleSolution(
         METHOD, t_final, grid, ends[:, :dim], ends[:, dim:], t_reached, steps, errors, status, messages,
         None if grid is None else states[:, position, :dim],
@@ -204,7 +204,8 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
 
 
 def judge_lanes(deviations: NDArray, drifts: NDArray, times: NDArray, t_reached: NDArray, steps: NDArray,
-                eps: float, failure: list[str | None]) -> tuple[NDArray, list[SolveStatus], list[str]]:
+                eps: float, failure: list[str | None],
+                hint: str | None = None) -> tuple[NDArray, list[SolveStatus], list[str]]:
     """Every lane judged as a single solve is judged (:func:`~manifold.constrained.verdict`), on its checked states.
 
     Parameters
@@ -219,6 +220,8 @@ def judge_lanes(deviations: NDArray, drifts: NDArray, times: NDArray, t_reached:
         The relative tolerance.
     failure
         Per lane: why the integrator stopped early, ``None`` if it did not.
+    hint
+        The system's sentence for a failed check (:meth:`~manifold.constrained.ConstrainedSystem.rounding_hint`).
 
     Returns
     -------
@@ -244,7 +247,7 @@ def judge_lanes(deviations: NDArray, drifts: NDArray, times: NDArray, t_reached:
             checked_times = np.append(times[1:], t_reached[k])[reached[k]]
             s, m = verdict(energy_violation(deviations[k, reached[k]], checked_times, int(steps[k]), eps,
                                             "ambient coordinates"),
-                           float(drift[k]), int(steps[k]), eps, float(t_reached[k]), failure[k])
+                           float(drift[k]), int(steps[k]), eps, float(t_reached[k]), failure[k], hint)
         status.append(s)
         messages.append(m)
     return errors, status, messages
