@@ -59,9 +59,10 @@ def node_kinds(decomposition: list, n_vars: int) -> Counter:
 
     ``series``: products and quotients of two series, powers (square roots), sine-cosine pairs and ``atan2``, each
     ``O(p^2)``; a square inside a sum (``atan2``'s ``u^2 + v^2``) adds one per square.  ``scaled``: products with a
-    runtime parameter or a number, ``O(p)``, and constants.  ``sums``: sums, differences and negations, ``O(p)`` per
-    term.  ``other``: anything else (none in the chart or hinge integrators).  ``n_vars`` is the state's size: the
-    decomposition's first and last ``n_vars`` entries are the variables and the right-hand sides.
+    runtime parameter or a number, ``O(p)``, and constants.  ``sums``: sums, differences and negations, ``O(p)``
+    for each of their terms (counted here as one node each).  ``other``: anything else (none in the chart or hinge
+    integrators).  ``n_vars`` is the state's size: the decomposition's first and last ``n_vars`` entries are the
+    variables and the right-hand sides.
     """
     kinds: Counter = Counter()
     for expression, _ in decomposition[n_vars : len(decomposition) - n_vars]:

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import functools
 from fractions import Fraction
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -49,6 +49,7 @@ from charts.chain_geometry import closure_tolerances, to_real
 from manifold.backends import Cx
 from manifold.constrained import ConstrainedSystem, floor_scales
 from manifold.options import StartCheck, check_group
+from manifold.precision import wider_types
 from manifold.validation import check_real
 
 from . import rods
@@ -58,9 +59,12 @@ __all__ = ["ChainSystem", "chain_system", "HingeConstraints", "HingeStart", "sta
            "start_states"]
 
 #: A link shorter than this share of the chain's total length is short: a failed check of the hinge method says so,
-#: and how to hold it (:meth:`ChainSystem.rounding_hint`).  Measured: links of 1e-3 of the others pass, of 1e-4 some
-#: whips fail the float64 energy check (``python -m benchmarks.short_links``).
-SHORT_LINK = 1e-3
+#: and how to hold it (:meth:`ChainSystem.rounding_hint`).  Measured (``python -m benchmarks.short_links``): links of
+#: 2.4e-4 of the total pass the float64 checks, of 2.4e-5 half of the whips fail them.
+SHORT_LINK = 1e-4
+#: Below this share of the total, long double at float64's tolerance failed some whips too (2.4e-8: 6 of 8 passed,
+#: 2.4e-7: all), and a failed check points to real128.
+LONG_DOUBLE_LINK = 1e-7
 
 #: Gauss-Newton steps (at most) when projecting a position back onto the constraints.
 _PROJECTION_STEPS = 8
@@ -507,17 +511,21 @@ class ChainSystem(ConstrainedSystem):
         """The mean rod length (1 for unit rods): the Baumgarte rate is speed / length, an angular rate."""
         return float(np.mean(self.chain.lengths))
 
-    def rounding_hint(self) -> str | None:
+    def rounding_hint(self, fp_type: Any, tol: float, widen: bool = True) -> str | None:
         """Where the shortest link is under :data:`SHORT_LINK` of the chain's total length ``R``: hinge coordinates
         hold its direction to about ``u R / l`` (``u`` the unit roundoff; its end hinges are rounded to ``u R``), and
-        where it whips round the energy drifts with that (``docs/methods.md``, "Short links"); the remedy."""
+        where it whips round the energy drifts with that (``docs/methods.md``, "Short links").  With ``widen``, the
+        remedy: the same tolerance ``tol`` in the next wider type (:func:`manifold.precision.wider_types`), real128
+        for a link under :data:`LONG_DOUBLE_LINK` of the total, where long double also failed."""
         ratio = float(np.min(self.chain.lengths) / np.sum(self.chain.lengths))
         if ratio >= SHORT_LINK:
             return None
-        return (f"the chain's shortest link is {ratio:.2g} of its total length, and hinge coordinates hold its direction "
-                f"only to about u / {ratio:.2g} (u the unit roundoff); a wider type at the same tolerance holds it: "
-                f"precision=Precision(fp_type='longdouble', tol=2.2e-16) (float64's default tolerance) for links down "
-                f"to about 1e-6 of the total, 'real128' below (docs/methods.md, 'Short links')")
+        hint = (f"the chain's shortest link is {ratio:.2g} of its total length, and hinge coordinates hold its "
+                f"direction only to about u / {ratio:.2g} (u the unit roundoff)")
+        wider = [name for name in wider_types(fp_type) if name != "longdouble" or ratio >= LONG_DOUBLE_LINK]
+        if widen and wider:
+            hint += f"; a wider type at the same tolerance holds it: precision=Precision('{wider[0]}', {tol:.3g})"
+        return hint + " (docs/methods.md, 'Short links')"
 
     @property
     def rounding_scales(self) -> NDArray:

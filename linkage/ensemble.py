@@ -22,6 +22,7 @@ from manifold.ensemble import EnsembleSolution, chunk_bounds, default_chunk_size
 from manifold.interrupt import SolveInterrupted
 from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, PROJECTED_START, Precision, SaveAt,
                               StartCheck, check_group, refuse_moved_options)
+from manifold.precision import fp_name
 from manifold.progress import ProgressArgument
 from manifold.solution import GeodesicSolution, SolveStatus
 from manifold.validation import check_positive_int
@@ -224,8 +225,12 @@ def free_motions(
             chunk_size=chunk_size, backend=backend, client=client, progress=progress, **options)
         return EnsembleMotion(chain, solution)
     if batch_size not in (None, 1):
+        reasons = [f"method={method!r}"] if method != "hinges" else []
+        reasons += [] if precision.fp_type is float else [f"precision {fp_name(precision.fp_type)}"]
+        reasons += [f"{k}={v!r}" for k, v in kwargs.items()
+                    if k not in BATCH_OPTIONS or (k == "stabilisation" and v != "baumgarte")]
         raise ValueError(f"batch_size={batch_size!r}: SIMD batches run the hinge method in float64 with Baumgarte "
-                         f"stabilisation only; method={method!r} with {sorted(kwargs)} runs single solves")
+                         f"stabilisation only, not with {', '.join(reasons)}; without batch_size it runs single solves")
     size = (default_chunk_size(len(X0), 1, backend, client) if chunk_size is None
             else check_positive_int("chunk_size", chunk_size))
     bounds = chunk_bounds(len(X0), size)

@@ -1,12 +1,14 @@
 """Riemannian geometry of a chain's configuration space: exp, parallel transport, Jacobi fields, log and distance.
 
-By default all of them run in hinge coordinates, on the rod constraints of
+They run in hinge coordinates, on the rod constraints of
 :class:`linkage.constraints.ChainSystem` (no chart, so nothing is singular:
 poles and folds of the suspension charts are ordinary points here), with the
 quantities carried along the geodesic as :mod:`manifold.carried` terms in the
 same heyoka Taylor integrator as the geodesic.  ``parallel_transport`` and
 ``jacobi_field`` also run in the suspension atlas (``method="charts"``): the
-geodesic chart by chart, the same terms carried beside it in hinge space.  Hinges, velocities and
+geodesic chart by chart, the same terms carried beside it in hinge space; by default
+(``method="auto"``) they take the method :func:`~linkage.motion.free_motion` takes, the atlas on a nearly
+stretched chain.  Hinges, velocities and
 tangent vectors are complex, shape ``(n-1,)`` (a vector of hinge velocities);
 several vectors at once have shape ``(k, n-1)``.  The kinetic metric is
 ``<u, w> = Re(u^H A w)`` with the chain's mass matrix ``A``.

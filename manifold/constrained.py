@@ -41,7 +41,7 @@ import math
 import threading
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from fractions import Fraction
@@ -169,9 +169,10 @@ class ConstrainedSystem(ABC):
         A system whose constraints are relative (a chain's ``|e_k|^2 / l_k^2 - 1``) weighs them back to velocities."""
         return np.ones(self.n_constraints)
 
-    def rounding_hint(self) -> str | None:
-        """What to add to a failed energy or constraint check where this system's coordinates hold some constraint
-        far less well than the others (:attr:`rounding_scales`), and what to do about it; ``None`` (the default):
+    def rounding_hint(self, fp_type: Any, tol: float, widen: bool = True) -> str | None:
+        """What to add to a failed energy or constraint check of a solve in ``fp_type`` at tolerance ``tol`` where this
+        system's coordinates hold some constraint far less well than the others (:attr:`rounding_scales`), and, with
+        ``widen`` (a solver that takes another precision), the wider type that would hold it; ``None`` (the default):
         nothing to add.  The solvers append it to the check's message (:func:`verdict`)."""
         return None
 
@@ -885,7 +886,7 @@ def constraint_bound(n_steps: int, eps: float) -> float:
 
 
 def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float, t: float,
-            failure: str | None, hint: str | None = None) -> tuple[SolveStatus, str]:
+            failure: str | None, hint: Callable[[float], str | None] | None = None) -> tuple[SolveStatus, str]:
     """How a stretch of a constrained solve ended: the checks in the order every constrained solver applies them.
 
     Parameters
@@ -903,7 +904,8 @@ def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float
     failure
         Why the integrator stopped early (``None`` if it did not).
     hint
-        A sentence for a failed energy or constraint check (:meth:`ConstrainedSystem.rounding_hint`), if any.
+        The sentence for a failed energy or constraint check, from the tolerance ``eps``
+        (:meth:`ConstrainedSystem.rounding_hint`); asked only when a check fails.
 
     Returns
     -------
@@ -912,15 +914,18 @@ def verdict(energy_violation: str | None, drift: float, n_steps: int, eps: float
         else the energy failure, the constraint failure, an interrupt (:data:`manifold.interrupt.INTERRUPTED`) or
         the stepper failure (in that order).
     """
-    note = "" if hint is None else f"; {hint}"
+    def note() -> str:
+        sentence = None if hint is None else hint(eps)
+        return "" if sentence is None else f"; {sentence}"
+
     if energy_violation is not None:
-        return SolveStatus.ENERGY_CHECK_FAILED, energy_violation + note
+        return SolveStatus.ENERGY_CHECK_FAILED, energy_violation + note()
     bound = constraint_bound(n_steps, eps)
     if not drift <= bound:
         return SolveStatus.CONSTRAINT_CHECK_FAILED, (
             f"constraint check failed by t = {t:.6g}: max_k |c_k| / w_k = {drift:.3g} (w_k >= 1: each constraint's "
             f"rounding floor over the common one) exceeds "
-            f"1000 sqrt(steps + 1) tol = {bound:.3g}{note}")
+            f"1000 sqrt(steps + 1) tol = {bound:.3g}{note()}")
     if failure == INTERRUPTED:
         return SolveStatus.INTERRUPTED, f"{INTERRUPTED} at t = {t}"
     if failure == BUDGET:  # the solver words it (manifold.budget.spent_message): it knows the budget and t_final
@@ -1098,7 +1103,8 @@ def solve_constrained(
                 reports.segment(t, "ambient coordinates")
             drift = float(geo.drift(c).max(initial=0.0))
             status, message = verdict(sol.energy_violation(recorded, eps, "ambient coordinates"), drift,
-                                      sol.n_steps, eps, float(t), adv.failure, system.rounding_hint())
+                                      sol.n_steps, eps, float(t), adv.failure,
+                                      lambda tol: system.rounding_hint(fp_type, tol))
             for term, sl in zip(carry, slots):
                 violation = carried_violation(term, geo, adv.step_states, first, sl, adv.step_times, sol.n_steps, eps)
                 if status is SolveStatus.SUCCESS and violation is not None:

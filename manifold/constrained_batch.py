@@ -24,6 +24,7 @@ are returned with status ``INTERRUPTED``.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from typing import Any
 
 import heyoka as hy
@@ -196,7 +197,8 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
     deviations = np.abs(E.reshape(n, -1) - E0[:, None]) / E0[:, None]
     drifts = geo.drift(c).reshape(n, -1)
     errors, status, messages = judge_lanes(deviations, drifts, times, t_reached, steps,
-                                           taylor_relative_tolerance(tol, float), failure, system.rounding_hint())
+                                           taylor_relative_tolerance(tol, float), failure,
+                                           lambda tol: system.rounding_hint(float, tol))
     return EnsembleSolution(
         METHOD, t_final, grid, ends[:, :dim], ends[:, dim:], t_reached, steps, errors, status, messages,
         None if grid is None else states[:, position, :dim],
@@ -205,7 +207,7 @@ def solve_constrained_chunk(system: ConstrainedSystem, x0: NDArray, v0: NDArray,
 
 def judge_lanes(deviations: NDArray, drifts: NDArray, times: NDArray, t_reached: NDArray, steps: NDArray,
                 eps: float, failure: list[str | None],
-                hint: str | None = None) -> tuple[NDArray, list[SolveStatus], list[str]]:
+                hint: Callable[[float], str | None] | None = None) -> tuple[NDArray, list[SolveStatus], list[str]]:
     """Every lane judged as a single solve is judged (:func:`~manifold.constrained.verdict`), on its checked states.
 
     Parameters
@@ -221,7 +223,8 @@ def judge_lanes(deviations: NDArray, drifts: NDArray, times: NDArray, t_reached:
     failure
         Per lane: why the integrator stopped early, ``None`` if it did not.
     hint
-        The system's sentence for a failed check (:meth:`~manifold.constrained.ConstrainedSystem.rounding_hint`).
+        The system's sentence for a failed check, from the tolerance, as :func:`~manifold.constrained.verdict` takes
+        it.
 
     Returns
     -------

@@ -309,7 +309,8 @@ def lyapunov_spectrum(
         pressed_at_all = pressed()  # also where another failure ended the run: a Ctrl-C is never swallowed
     dev = np.abs(np.array(energies) - E0) / E0
     status, message = verdict(energy_violation(dev, energy_times, n_steps, eps, "ambient coordinates"), drift,
-                              n_steps, eps, t, failure, system.rounding_hint())
+                              n_steps, eps, t, failure,
+                              lambda tol: system.rounding_hint(float, tol, widen=False))  # float64 only
     if failure == BUDGET:  # named even where a failed check comes first
         spent = spent_message(account, t, t_final)
         message = spent if status is SolveStatus.BUDGET_EXCEEDED else f"{message}; stopped there: {spent}"

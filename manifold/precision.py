@@ -119,6 +119,14 @@ def unit_roundoff(fp_type) -> float:
     )
 
 
+def wider_types(fp_type) -> list[str]:
+    """The names (:func:`fp_name`) of the supported hardware and quad types with more significant bits than
+    ``fp_type``, narrowest first: from float64 ``["longdouble", "real128"]`` where long double is wider than float64
+    (x86), else ``["real128"]``; none from real128 (:class:`MultiPrecision` goes further, at a cost)."""
+    bits = -np.log2(unit_roundoff(fp_type))
+    return [name for name, t in FP_NAMES.items() if t is not None and -np.log2(unit_roundoff(t)) > bits]
+
+
 def two_pi(fp_type) -> Any:
     """``2 pi`` rounded once to ``fp_type`` (``8 atan(1)`` in it): the shift of every wrap of a periodic parameter,
     so that the stepper's wraps between steps and the loop's at events round alike."""

@@ -178,7 +178,8 @@ _NEAR_BOUND = st.sampled_from([0.0, 0.5, 1.0 - 1e-12, 1.0, 1.0 + 1e-12, 3.0, flo
 @settings(max_examples=200)
 def test_lanes_are_judged_exactly_as_one_by_one(data, lanes, grid, backward):
     """``judge_lanes`` finds the passing lanes all at once; it must say what ``verdict`` says of each lane alone
-    (the energy check over the grid times reached and the end, then the constraints, then the stepper)."""
+    (the energy check over the grid times reached and the end, then the constraints, then the stepper), the
+    system's hint after a failed energy or constraint check only."""
     T = -2.0 if backward else 2.0
     times = np.linspace(0.0, T, grid + 2)
     eps = 2.0**-52
@@ -190,13 +191,18 @@ def test_lanes_are_judged_exactly_as_one_by_one(data, lanes, grid, backward):
     shape = st.lists(_NEAR_BOUND, min_size=len(times), max_size=len(times))
     deviations = np.array([[f * energy_bound(int(s), eps) for f in data.draw(shape)] for s in steps])
     drifts = np.array([[f * constraint_bound(int(s), eps) for f in data.draw(shape)] for s in steps])
-    errors, status, messages = judge_lanes(deviations, drifts, times, t_reached, steps, eps, failure)
+    def hint(tol: float) -> str:  # a system's sentence for a failed check (ConstrainedSystem.rounding_hint)
+        return f"hint at tol {tol:g}"
+
+    errors, status, messages = judge_lanes(deviations, drifts, times, t_reached, steps, eps, failure, hint)
     for k in range(lanes):
         rows = np.append(np.abs(times[1:]) <= abs(t_reached[k]), True)
         expected = verdict(energy_violation(deviations[k, rows], np.append(times[1:], t_reached[k])[rows],
                                             int(steps[k]), eps, "ambient coordinates"),
-                           float(np.max(drifts[k, rows])), int(steps[k]), eps, float(t_reached[k]), failure[k])
+                           float(np.max(drifts[k, rows])), int(steps[k]), eps, float(t_reached[k]), failure[k], hint)
         assert (status[k], messages[k]) == expected
+        checks = (SolveStatus.ENERGY_CHECK_FAILED, SolveStatus.CONSTRAINT_CHECK_FAILED)
+        assert messages[k].endswith(f"; hint at tol {eps:g}") == (status[k] in checks)
         assert np.array_equal(errors[k], np.max(deviations[k, rows]), equal_nan=True)
 
 
@@ -218,7 +224,9 @@ def test_the_default_method_is_free_motion_s():
         singles = _singles(chain, H, V, 1.0, ts)
         assert method in ens.solution.method and all(method in s.solution.method for s in singles)
         assert ens.success.all() and _max_gap(ens, singles) <= 1e-12
-    batched = free_motions(chain, H, V, 1.0, save=SaveAt(t_eval=ts), batch_size=2)  # asks for the hinges' batches
+    stretched = Chain(5, 5 - 1e-4)
+    H, V = _starts(stretched, 2, seed=3, pole=False)
+    batched = free_motions(stretched, H, V, 0.5, batch_size=2)  # a batch size asks for the hinges' SIMD batches
     assert "constrained" in batched.solution.method and batched.solution.batch_size == 2
 
 
@@ -329,7 +337,8 @@ def test_optional_extras_missing_give_a_clear_error(monkeypatch, module, kwargs,
     ({"save": SaveAt(dense=True)}, TypeError, "free_motions keeps no dense output"),
     ({"dense": False}, TypeError, "dense= is given as save=SaveAt"),
     ({"throw": False}, TypeError, "free_motions does not take throw="),
-    ({"method": "charts", "batch_size": 4}, ValueError, "SIMD batches run the hinge method"),
+    ({"method": "charts", "batch_size": 4}, ValueError, "SIMD batches run the hinge method .* not with method='charts'"),
+    ({"batch_size": 4, "q_out": 0.3}, ValueError, "not with q_out=0.3; without batch_size it runs single solves"),
     ({"method": "rk4"}, ValueError, "method must be one of"),
     ({"progress": "yes"}, ValueError, "progress must be None, False, True, 'tqdm' or a callable"),
     ({"save": SaveAt(t_eval=[0.0, 2.0])}, ValueError, "t_eval must be a 1-d array of times within \\[0, 1\\]"),

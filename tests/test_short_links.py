@@ -92,27 +92,46 @@ def test_short_link_that_does_not_close_is_refused() -> None:
 def test_a_whipping_short_link_is_refused_in_float64_with_its_remedy_which_holds_it() -> None:
     """A random velocity whips a link of 1e-6 round at ~1e6 rad/s.  Hinge coordinates hold its direction to about
     ``u R / l``: the float64 run fails its energy check, and the message names the short link (2.4e-7 of the total
-    length 4.200001) and the remedy; long double at float64's tolerance passes, and its short link's angle at the end
-    is that of a real128 run at tolerance 1e-25 to 1e-9."""
+    length 4.200001) and the remedy, the next wider type at the same tolerance; that type passes, and its short
+    link's angle at the end is that of a real128 run at tolerance 1e-25 to 1e-9."""
     import mpmath
 
     from benchmarks.short_links import start
     from manifold import Precision, SaveAt
+    from manifold.precision import wider_types
     from manifold.solution import SolveStatus
 
     chain = Chain(np.array([1.0, 1.3, 1e-6, 0.8, 1.1]), 2.5)
-    assert ChainSystem(Chain(np.array([1.0, 1.3, 0.01, 0.8, 1.1]), 2.5)).rounding_hint() is None  # 2.4e-3: not short
+    wider = wider_types(float)[0]  # long double where it is wider than float64 (x86), else real128
     h0, v0 = start(chain, 0)
     run = {name: free_motion(chain, h0, v0, 2e-5, method="hinges", throw=False, save=SaveAt(dense=False),
                              precision=precision)
-           for name, precision in (("float64", Precision()), ("long double", Precision("longdouble", 2.2e-16)),
+           for name, precision in (("float64", Precision()), ("wider", Precision(wider, 2.22e-16)),
                                    ("reference", Precision("real128", 1e-25)))}
     failed = run["float64"].solution
     assert failed.status is SolveStatus.ENERGY_CHECK_FAILED
     assert "the chain's shortest link is 2.4e-07 of its total length" in failed.message
-    assert "Precision(fp_type='longdouble', tol=2.2e-16)" in failed.message
-    assert run["long double"].solution.message == "reached t_final" and run["reference"].success  # no hint on success
+    assert f"precision=Precision('{wider}', 2.22e-16)" in failed.message
+    assert run["wider"].solution.message == "reached t_final" and run["reference"].success  # no hint on success
     with mpmath.workprec(128):
         ends = {name: [mpmath.mpf(str(u)) for u in run[name].solution.end_state()[0]] for name in run}
         short = {name: mpmath.mpc(e[4] - e[2], e[5] - e[3]) for name, e in ends.items()}  # hinge 2 to hinge 3
-        assert abs(short["long double"] - short["reference"]) / 1e-6 <= 1e-9
+        assert abs(short["wider"] - short["reference"]) / 1e-6 <= 1e-9
+
+
+@pytest.mark.parametrize("lengths, fp_type, widen, names", [
+    ([1.0, 1.3, 0.01, 0.8, 1.1], "float64", True, None),  # 2.4e-3 of the total: not short
+    ([1.0, 1.3, 1e-6, 0.8, 1.1], "longdouble", True, "real128"),
+    ([1.0, 1.3, 1e-6, 0.8, 1.1], "real128", True, ""),  # nothing wider to name
+    ([1.0, 1.3, 1e-6, 0.8, 1.1], "float64", False, ""),  # a solver that runs in float64 only (Lyapunov)
+    ([1.0, 1.3, 1e-8, 0.8, 1.1], "float64", True, "real128"),  # 2.4e-9: long double failed some whips too
+])
+def test_the_short_link_hint_names_a_type_that_can_help(lengths, fp_type, widen, names) -> None:
+    from manifold.precision import resolve_fp_type
+
+    hint = ChainSystem(Chain(np.array(lengths), 2.5)).rounding_hint(resolve_fp_type(fp_type), 1e-15, widen)
+    if names is None:
+        assert hint is None
+    else:
+        assert "shortest link" in hint
+        assert (f"Precision('{names}', 1e-15)" in hint) if names else ("Precision(" not in hint)
