@@ -106,3 +106,15 @@ def test_the_start_is_checked_once_and_by_the_tangent_tolerance_given(monkeypatc
         sensitivity(CHAIN, h0, tilted, 0.1, start=StartCheck(tangent_tol=1e-8))
     assert sensitivity(CHAIN, h0, tilted, 0.1, start=StartCheck(tangent_tol=1e-6)).amplification[0] == \
         pytest.approx(1.0, abs=1e-12)
+
+
+def test_the_default_method_is_free_motion_s():
+    """``method="auto"``: on a nearly stretched chain the fields ride beside the atlas's geodesic, as ``free_motion``'s
+    default runs it; the same numbers as ``method="charts"``, and not those of the hinges."""
+    chain = Chain(4, 4 - 1e-4)
+    h, v = sample_starts(chain, 1, 1.0, np.random.default_rng(5))
+    save = SaveAt(t_eval=[0.0, 0.2])
+    runs = {method: sensitivity(chain, h[0], v[0], 0.2, save=save, **({} if method == "auto" else {"method": method}))
+            for method in ("auto", "charts", "hinges")}
+    assert np.array_equal(runs["auto"].amplification, runs["charts"].amplification)
+    assert not np.array_equal(runs["auto"].amplification, runs["hinges"].amplification)
