@@ -69,6 +69,9 @@ MASS_RANGE = (1e-100, 1e100)
 #: A start must close to this, relative to each rod (:meth:`Chain.check_configuration`), or to what float64 rounding
 #: allows where that is larger; every solver of the chain takes what this check takes.
 START_CLOSURE_TOLERANCE = 1e-9
+#: A chain whose :attr:`Chain.stretch_gap` is below this is nearly stretched: there the hinge method's rods carry
+#: tensions ``~ E / gap`` and it loses digits (``docs/methods.md``); ``free_motion``'s default takes the charts.
+STRETCHED_GAP = 1e-3
 
 
 def _read_only(a: NDArray) -> NDArray:
@@ -290,6 +293,15 @@ class Chain:
                 f"configuration space is a sphere, a side of the polygon (l_1, ..., l_n, L) dominant (the base L "
                 f"for {lo!r} < L < {hi!r}; away from the ends by more than topology()'s tolerance); here it is "
                 f"{t.summary()}" + hint)
+
+    @property
+    def stretch_gap(self) -> float:
+        """How far the chain is from full stretch, as a share of the perimeter ``P`` of the polygon
+        ``(l_1, ..., l_n, L)``: ``(P - 2 s) / P`` with ``s`` its longest side, the amount by which that side falls short
+        of the others' sum.  Below :data:`STRETCHED_GAP` the chain is nearly stretched."""
+        sides = np.append(self.lengths, self.L)
+        perimeter = float(np.sum(sides))
+        return (perimeter - 2 * float(np.max(sides))) / perimeter
 
     @property
     def has_atlas(self) -> bool:

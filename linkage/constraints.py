@@ -53,7 +53,7 @@ from manifold.precision import wider_types
 from manifold.validation import check_real
 
 from . import rods
-from .chain import START_CLOSURE_TOLERANCE, Chain
+from .chain import START_CLOSURE_TOLERANCE, STRETCHED_GAP, Chain
 
 __all__ = ["ChainSystem", "chain_system", "HingeConstraints", "HingeStart", "start_arguments", "start_state",
            "start_states"]
@@ -511,21 +511,35 @@ class ChainSystem(ConstrainedSystem):
         """The mean rod length (1 for unit rods): the Baumgarte rate is speed / length, an angular rate."""
         return float(np.mean(self.chain.lengths))
 
-    def rounding_hint(self, fp_type: Any, tol: float, widen: bool = True) -> str | None:
-        """Where the shortest link is under :data:`SHORT_LINK` of the chain's total length ``R``: hinge coordinates
-        hold its direction to about ``u R / l`` (``u`` the unit roundoff; its end hinges are rounded to ``u R``), and
-        where it whips round the energy drifts with that (``docs/methods.md``, "Short links").  With ``widen``, the
-        remedy: the same tolerance ``tol`` in the next wider type (:func:`manifold.precision.wider_types`), real128
-        for a link under :data:`LONG_DOUBLE_LINK` of the total, where long double also failed."""
-        ratio = float(np.min(self.chain.lengths) / np.sum(self.chain.lengths))
-        if ratio >= SHORT_LINK:
-            return None
-        hint = (f"the chain's shortest link is {ratio:.2g} of its total length, and hinge coordinates hold its "
-                f"direction only to about u / {ratio:.2g} (u the unit roundoff)")
-        wider = [name for name in wider_types(fp_type) if name != "longdouble" or ratio >= LONG_DOUBLE_LINK]
-        if widen and wider:
-            hint += f"; a wider type at the same tolerance holds it: precision=Precision('{wider[0]}', {tol:.3g})"
-        return hint + " (docs/methods.md, 'Short links')"
+    def rounding_hint(self, fp_type: Any, tol: float, remedy: bool = True) -> str | None:
+        """Why hinge coordinates may have lost digits on this chain, and (with ``remedy``) what holds them.
+
+        * The shortest link under :data:`SHORT_LINK` of the chain's total length ``R``: hinge coordinates hold its
+          direction to about ``u R / l`` (``u`` the unit roundoff; its end hinges are rounded to ``u R``), and where
+          it whips round the energy drifts with that (``docs/methods.md``, "Short links").  The remedy: the same
+          tolerance ``tol`` in the next wider type (:func:`manifold.precision.wider_types`), real128 for a link
+          under :data:`LONG_DOUBLE_LINK` of the total, where long double also failed.
+        * The chain nearly stretched (:attr:`Chain.stretch_gap <linkage.chain.Chain.stretch_gap>` below
+          :data:`~linkage.chain.STRETCHED_GAP`): the rods' tensions grow like ``1 / gap``.  The remedy, where the
+          chain has an atlas: the charts, which ``free_motion``'s default takes there.
+        """
+        chain = self.chain
+        ratio = float(np.min(chain.lengths) / np.sum(chain.lengths))
+        hints = []
+        if ratio < SHORT_LINK:
+            hint = (f"the chain's shortest link is {ratio:.2g} of its total length, and hinge coordinates hold its "
+                    f"direction only to about u / {ratio:.2g} (u the unit roundoff)")
+            wider = [name for name in wider_types(fp_type) if name != "longdouble" or ratio >= LONG_DOUBLE_LINK]
+            if remedy and wider:
+                hint += f"; a wider type at the same tolerance holds it: precision=Precision('{wider[0]}', {tol:.3g})"
+            hints.append(hint + " (docs/methods.md, 'Short links')")
+        if chain.stretch_gap < STRETCHED_GAP:
+            hint = (f"the chain is {chain.stretch_gap:.2g} of its perimeter short of full stretch, where the rods' "
+                    f"tensions grow like 1 / that and hinge coordinates lose digits")
+            if remedy and chain.has_atlas:
+                hint += "; the charts hold it: free_motion(method='charts'), its default there"
+            hints.append(hint)
+        return "; ".join(hints) or None
 
     @property
     def rounding_scales(self) -> NDArray:

@@ -29,7 +29,7 @@ from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, PR
 from manifold.progress import ProgressArgument
 from manifold.sundman import SundmanStepper
 
-from .chain import Chain
+from .chain import STRETCHED_GAP, Chain
 from .constraints import ChainSystem, chain_system, start_arguments, start_state
 from .ensemble import EnsembleMotion, free_motions
 from .lyapunov import lyapunov_exponent, lyapunov_exponents
@@ -194,19 +194,14 @@ def _method_options(method: str) -> tuple[str, ...]:
                         and name not in ("metric", "progress", "carry", "start", "save", "precision")))
 
 
-#: A chain whose dominant side falls short of the others' sum by less than this share of the perimeter is nearly
-#: stretched: there the hinge method's rods carry tensions ``~ E / gap`` and it loses digits (``docs/methods.md``).
-STRETCHED_GAP = 1e-3
-
-
 def choose_method(chain: Chain, options: dict[str, Any]) -> str:
     """The method that ``method="auto"`` stands for, for ``chain`` and ``free_motion``'s other options.
 
     The method whose solver alone takes an option given (``stepper``, ``form``, ``q_out``: the charts;
     ``stabilisation``, ``rate``, ``compact_mode``, ...: the hinges); else ``"charts"``
-    where the chain has an atlas and is nearly stretched (its dominant side within :data:`STRETCHED_GAP` of the
-    perimeter from the others' sum: the top of a sphere range, where the hinge method's velocities collect
-    errors that no check sees); otherwise ``"hinges"``, the faster at every size and precision measured (7-15x
+    where the chain has an atlas and is nearly stretched (:attr:`Chain.stretch_gap
+    <linkage.chain.Chain.stretch_gap>` below :data:`~linkage.chain.STRETCHED_GAP`: the top of a sphere range,
+    where the hinge method's velocities collect errors that no check sees); otherwise ``"hinges"``, the faster at every size and precision measured (7-15x
     at equal error 1e-10 in float64 for n = 4..10 in the last two runs of ``benchmarks.peers``, 4.8-4.9x in
     real128 at n = 4: ``docs/methods.md``, "which method when").
     """
@@ -215,10 +210,7 @@ def choose_method(chain: Chain, options: dict[str, Any]) -> str:
         return "charts"
     if given & (hinges - charts):
         return "hinges"
-    sides = np.append(chain.lengths, chain.L)
-    perimeter = float(np.sum(sides))
-    stretched = (perimeter - 2 * float(np.max(sides))) / perimeter < STRETCHED_GAP
-    return "charts" if stretched and chain.has_atlas else "hinges"
+    return "charts" if chain.stretch_gap < STRETCHED_GAP and chain.has_atlas else "hinges"
 
 
 def _check_options(method: str, options: dict[str, Any]) -> None:

@@ -169,11 +169,12 @@ class ConstrainedSystem(ABC):
         A system whose constraints are relative (a chain's ``|e_k|^2 / l_k^2 - 1``) weighs them back to velocities."""
         return np.ones(self.n_constraints)
 
-    def rounding_hint(self, fp_type: Any, tol: float, widen: bool = True) -> str | None:
+    def rounding_hint(self, fp_type: Any, tol: float, remedy: bool = True) -> str | None:
         """What to add to a failed energy or constraint check of a solve in ``fp_type`` at tolerance ``tol`` where this
-        system's coordinates hold some constraint far less well than the others (:attr:`rounding_scales`), and, with
-        ``widen`` (a solver that takes another precision), the wider type that would hold it; ``None`` (the default):
-        nothing to add.  The solvers append it to the check's message (:func:`verdict`)."""
+        system's coordinates are known to lose digits (a constraint held far less well than the others,
+        :attr:`rounding_scales`, or a nearly singular constraint matrix), and, with ``remedy`` (a caller that can
+        change the precision or the method), what would hold it; ``None`` (the default): nothing to add.  The
+        solvers append it to the check's message (:func:`verdict`)."""
         return None
 
     @property

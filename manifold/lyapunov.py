@@ -310,7 +310,7 @@ def lyapunov_spectrum(
     dev = np.abs(np.array(energies) - E0) / E0
     status, message = verdict(energy_violation(dev, energy_times, n_steps, eps, "ambient coordinates"), drift,
                               n_steps, eps, t, failure,
-                              lambda tol: system.rounding_hint(float, tol, widen=False))  # float64 only
+                              lambda tol: system.rounding_hint(float, tol, remedy=False))  # float64 only
     if failure == BUDGET:  # named even where a failed check comes first
         spent = spent_message(account, t, t_final)
         message = spent if status is SolveStatus.BUDGET_EXCEEDED else f"{message}; stopped there: {spent}"

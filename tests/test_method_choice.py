@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from linkage import Chain
-from linkage.motion import STRETCHED_GAP, choose_method, free_motion
+from linkage.chain import STRETCHED_GAP
+from linkage.motion import choose_method, free_motion
 from linkage.sampling import sample_starts
 from manifold import SaveAt
 from manifold.steppers import TaylorStepper
@@ -50,3 +51,21 @@ def test_a_bad_method_names_the_choices():
     h, v = sample_starts(chain, 1, 1.0, np.random.default_rng(0))
     with pytest.raises(ValueError, match=r"method must be one of \('charts', 'hinges', 'auto'\)"):
         free_motion(chain, h[0], v[0], 1.0, method="fastest")
+
+
+def test_a_failed_hinge_run_on_a_stretched_chain_says_why_and_points_to_the_charts():
+    """5e-10 of the perimeter short of full stretch the rods' tensions are ~2e9 times the energy: the hinge method's
+    energy check refuses the run and its message says why and names the charts, which the default runs and which
+    pass; a Lyapunov run (hinge coordinates only) gets the why without a remedy it could not take."""
+    from linkage.motion import lyapunov_exponent
+    from manifold import SolveStatus
+
+    chain = Chain(4, 4 - 4e-9)
+    h, v = sample_starts(chain, 1, 1.0, np.random.default_rng(0))
+    failed = free_motion(chain, h[0], v[0], 2.0, method="hinges", throw=False, save=SaveAt(dense=False)).solution
+    assert failed.status is SolveStatus.ENERGY_CHECK_FAILED
+    assert "the chain is 5e-10 of its perimeter short of full stretch" in failed.message
+    assert "free_motion(method='charts')" in failed.message
+    assert free_motion(chain, h[0], v[0], 2.0, save=SaveAt(dense=False)).success
+    exponents = lyapunov_exponent(chain, h[0], v[0], 2.0, k=1, throw=False)
+    assert not exponents.success and "short of full stretch" in exponents.message and "charts" not in exponents.message

@@ -119,17 +119,17 @@ def test_a_whipping_short_link_is_refused_in_float64_with_its_remedy_which_holds
         assert abs(short["wider"] - short["reference"]) / 1e-6 <= 1e-9
 
 
-@pytest.mark.parametrize("lengths, fp_type, widen, names", [
+@pytest.mark.parametrize("lengths, fp_type, remedy, names", [
     ([1.0, 1.3, 0.01, 0.8, 1.1], "float64", True, None),  # 2.4e-3 of the total: not short
     ([1.0, 1.3, 1e-6, 0.8, 1.1], "longdouble", True, "real128"),
     ([1.0, 1.3, 1e-6, 0.8, 1.1], "real128", True, ""),  # nothing wider to name
     ([1.0, 1.3, 1e-6, 0.8, 1.1], "float64", False, ""),  # a solver that runs in float64 only (Lyapunov)
     ([1.0, 1.3, 1e-8, 0.8, 1.1], "float64", True, "real128"),  # 2.4e-9: long double failed some whips too
 ])
-def test_the_short_link_hint_names_a_type_that_can_help(lengths, fp_type, widen, names) -> None:
+def test_the_short_link_hint_names_a_type_that_can_help(lengths, fp_type, remedy, names) -> None:
     from manifold.precision import resolve_fp_type
 
-    hint = ChainSystem(Chain(np.array(lengths), 2.5)).rounding_hint(resolve_fp_type(fp_type), 1e-15, widen)
+    hint = ChainSystem(Chain(np.array(lengths), 2.5)).rounding_hint(resolve_fp_type(fp_type), 1e-15, remedy)
     if names is None:
         assert hint is None
     else:
