@@ -28,6 +28,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -191,13 +192,17 @@ def side_by_side(n: int, rounds: int, baseline: Path) -> None:
     """This checkout and ``baseline``, alternating subprocesses, each the fastest of its rounds."""
     here = Path(__file__).resolve().parent.parent
     best: dict[str, dict[str, float]] = {}
-    for _ in range(rounds):
-        for label, tree in (("before", baseline), ("after", here)):
-            env = {**os.environ, "PYTHONPATH": str(tree)}
-            out = subprocess.run([sys.executable, __file__, "--n", str(n), "--rounds", "3", "--json"], env=env, cwd="/",
-                                 check=True, capture_output=True, text=True).stdout
-            got = json.loads(out.splitlines()[-1])
-            best[label] = {k: min(v, best.get(label, {}).get(k, np.inf)) for k, v in got.items()}
+    with tempfile.TemporaryDirectory() as scripts:
+        # this checkout's benchmarks package alone, ahead of each tree on the path: the same measuring code (run as a
+        # module, for its relative imports) against the library of either tree
+        os.symlink(here / "benchmarks", Path(scripts) / "benchmarks")
+        for _ in range(rounds):
+            for label, tree in (("before", baseline), ("after", here)):
+                env = {**os.environ, "PYTHONPATH": os.pathsep.join([scripts, str(tree)])}
+                out = subprocess.run([sys.executable, "-m", "benchmarks.call_cost", "--n", str(n), "--rounds", "3",
+                                      "--json"], env=env, cwd="/", check=True, capture_output=True, text=True).stdout
+                got = json.loads(out.splitlines()[-1])
+                best[label] = {k: min(v, best.get(label, {}).get(k, np.inf)) for k, v in got.items()}
     print(f"n = {n}, hinges: before ({baseline}) and after ({here}), CPU time per call, fastest of {rounds} alternating "
           f"runs of 3 rounds")
     for k in best["after"]:

@@ -3,6 +3,7 @@ size, and compare like with like: what they time as "bare heyoka" integrates the
 parameters the library's call integrates, so both end in the same place.  No timing is checked here."""
 
 import ctypes
+from pathlib import Path
 
 import heyoka as hy
 import numpy as np
@@ -79,3 +80,11 @@ def test_chart_scaling_sorts_nodes_by_the_cost_of_their_recursion():
     assert kinds["series"] == 10 and kinds["scaled"] == 4 and kinds["other"] == 0
     # every other node is a sum: 4 are the variables and outputs, 8 the series' own nodes (the squares sit in a sum)
     assert kinds["sums"] == len(ta.decomposition) - 4 - 8 - 4
+
+
+def test_call_cost_measures_another_checkout_with_this_checkout_s_code(capsys):
+    """``--baseline``: each side runs this checkout's benchmark, as a module (its imports are relative), on the
+    library of its own tree; here both trees are this one, so the two sides measure the same code."""
+    call_cost.side_by_side(4, 1, Path(call_cost.__file__).resolve().parent.parent)
+    out = capsys.readouterr().out
+    assert "fixed, dense" in out and "share of a T = 10 call in heyoka (dense)" in out
