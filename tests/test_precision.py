@@ -76,3 +76,14 @@ def test_multiprecision_crosses_a_chart_switch_and_agrees_with_real128():
 
 def _max_abs(x) -> float:
     return max(abs(float(v)) for v in np.ravel(x))
+
+
+def test_wider_types_have_more_significant_bits():
+    """``wider_types``: real128 (113 bits) from float64 (53), long double only where it has more bits than the type
+    (x86: 64; elsewhere 53, or 113 like real128), nothing from real128."""
+    from manifold.precision import wider_types
+
+    long_bits = np.finfo(np.longdouble).nmant + 1
+    assert wider_types(float) == (["longdouble"] if long_bits > 53 else []) + ["real128"]
+    assert wider_types(np.longdouble) == (["real128"] if long_bits < 113 else [])
+    assert wider_types(hy.real128) == []
