@@ -298,10 +298,10 @@ class Chain:
     def stretch_gap(self) -> float:
         """How far the chain is from full stretch, as a share of the perimeter ``P`` of the polygon
         ``(l_1, ..., l_n, L)``: ``(P - 2 s) / P`` with ``s`` its longest side, the amount by which that side falls short
-        of the others' sum.  Below :data:`STRETCHED_GAP` the chain is nearly stretched."""
-        sides = np.append(self.lengths, self.L)
-        perimeter = float(np.sum(sides))
-        return (perimeter - 2 * float(np.max(sides))) / perimeter
+        of the others' sum (``-2`` times :func:`~linkage.topology.longest_side`'s excess).  Below
+        :data:`STRETCHED_GAP` the chain is nearly stretched."""
+        _, excess = longest_side(self.lengths, self.L)
+        return -2 * excess / (float(np.sum(self.lengths)) + self.L)
 
     @property
     def has_atlas(self) -> bool:
