@@ -216,21 +216,22 @@ def free_motions(
     grid = save.grid(t_final)
     if method == AUTO:  # a batch size is an option of the hinge method's SIMD batches alone
         method = choose_method(chain, kwargs) if batch_size in (None, 1) else "hinges"
-    batchable = (method == "hinges" and set(kwargs) <= BATCH_OPTIONS and precision.fp_type is float
-                 and kwargs.get("stabilisation", "baumgarte") == "baumgarte")
-    if batchable:
+    # what keeps this call off the SIMD batches, which run the hinge method in float64 with Baumgarte stabilisation
+    unbatched = [f"method={method!r}"] if method != "hinges" else []
+    if precision.fp_type is not float:
+        unbatched.append(f"precision {fp_name(precision.fp_type)}")
+    unbatched += [f"{k}={v!r}" for k, v in kwargs.items()
+                  if k not in BATCH_OPTIONS or (k == "stabilisation" and v != "baumgarte")]
+    if not unbatched:
         options = {k: v for k, v in kwargs.items() if k in ("rate", "compact_mode")}
         solution = solve_constrained_ensemble(
             ChainSystem(chain), X0, V0, t_final, save=save, precision=precision, batch_size=batch_size,
             chunk_size=chunk_size, backend=backend, client=client, progress=progress, **options)
         return EnsembleMotion(chain, solution)
     if batch_size not in (None, 1):
-        reasons = [f"method={method!r}"] if method != "hinges" else []
-        reasons += [] if precision.fp_type is float else [f"precision {fp_name(precision.fp_type)}"]
-        reasons += [f"{k}={v!r}" for k, v in kwargs.items()
-                    if k not in BATCH_OPTIONS or (k == "stabilisation" and v != "baumgarte")]
         raise ValueError(f"batch_size={batch_size!r}: SIMD batches run the hinge method in float64 with Baumgarte "
-                         f"stabilisation only, not with {', '.join(reasons)}; without batch_size it runs single solves")
+                         f"stabilisation only, not with {', '.join(unbatched)}; without batch_size it runs single "
+                         f"solves")
     size = (default_chunk_size(len(X0), 1, backend, client) if chunk_size is None
             else check_positive_int("chunk_size", chunk_size))
     bounds = chunk_bounds(len(X0), size)
