@@ -13,8 +13,8 @@ Ours: ``free_motion(method="hinges")`` and ``free_motion(method="charts")`` (its
 each as a user calls it (start check, compile fetched from the cache, ``t_eval``, no dense output).
 ``--compile-modes`` adds the hinges with heyoka's compact mode forced on and off (``compact_mode=True`` /
 ``False``), each against DOP853: what the default compile option (``default_compact_mode``) gains or loses; and
-the charts' default stepper compiled unrolled (``SundmanStepper(..., compact_mode=False)``: the charts are compact
-by default, for the compile's sake), against DOP853.
+the charts' default stepper compiled unrolled (``free_motion(method="charts", compact_mode=False)``: the charts are
+compact by default, for the compile's sake), against DOP853.
 
 Conditions (the same for every row): a generic unit-energy start (``generic_start``:
 ``L = n - 1.3``, unit hinge masses), T = 20, the state at 101 equally spaced times; the error of a
@@ -57,12 +57,8 @@ import scipy
 from scipy.integrate import solve_ivp
 
 from linkage import Chain
-from linkage.constraints import ChainSystem
 from linkage.motion import free_motion
-from linkage.time_factor import ChainTimeFactor
 from manifold import Precision, SaveAt
-from manifold.ambient_velocity import ConstrainedVelocity
-from manifold.sundman import SundmanStepper
 
 from .study.experiments import generic_start
 from .study.report import PEERS_SECTION, replace_section
@@ -136,15 +132,8 @@ def reference(pb: Problem, fp_type: Any) -> np.ndarray:
 def ours(pb: Problem, method: str, tol: float | None,
          compact_mode: bool | None = None) -> Callable[[], tuple[np.ndarray, int]]:
     """``free_motion(method=...)``; ``compact_mode`` forced if not ``None`` (the charts: their default stepper,
-    Sundman's time with the state ``(a, J c)``, given with it)."""
-    if compact_mode is None:
-        options: dict[str, Any] = {}
-    elif method == "hinges":
-        options = {"compact_mode": compact_mode}
-    else:  # the stepper holds the tolerance
-        options = {"stepper": SundmanStepper(ChainTimeFactor(pb.chain), tol=tol, compact_mode=compact_mode,
-                                             velocity=ConstrainedVelocity(ChainSystem(pb.chain)))}
-        tol = None
+    Sundman's time with the state ``(a, J c)``, compiled so)."""
+    options = {} if compact_mode is None else {"compact_mode": compact_mode}
 
     def run() -> tuple[np.ndarray, int]:
         m = free_motion(pb.chain, pb.h0, pb.w0, pb.T, method=method, save=SaveAt(t_eval=pb.ts, dense=False),
@@ -390,7 +379,7 @@ def render(results: dict[int, dict], peers: dict[str, Any], T: float, rounds: in
              "charts\" is the charts' time over the hinges' (at 1e-8 / 1e-10 / the charts' best error). "
              + ("The columns \"compact\" and \"unrolled\" are the hinges with heyoka's compact mode forced on and "
                 "off (`compact_mode=True` / `False`) against DOP853; \"charts unrolled\" is the charts' default stepper "
-                "compiled unrolled (`SundmanStepper(..., compact_mode=False)`, tolerances 1e-8, 1e-10, 1e-12) against "
+                "compiled unrolled (`free_motion(method=\"charts\", compact_mode=False)`, tolerances 1e-8, 1e-10, 1e-12) against "
                 "DOP853. " if modes else "")
              + ", ".join(versions) + ".", "",
              "| n | hinges vs DOP853 | hinges vs diffrax | charts vs DOP853 | hinges vs charts | "

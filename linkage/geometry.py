@@ -37,15 +37,13 @@ from manifold.jacobi import JacobiField
 from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, PROJECTED_START, Precision, SaveAt,
                               StartCheck, check_group, takes_option_groups)
 from manifold.precision import is_double
-from manifold.sundman import SundmanStepper
 from manifold.transport import ParallelTransport
 from manifold.validation import check_positive_int, check_real
 
 from .chain import Chain
 from .diagonal_path import DiagonalPath
 from .constraints import ChainSystem, HingeConstraints, HingeStart, start_state
-from .motion import AUTO, METHODS, choose_method
-from .time_factor import ChainTimeFactor
+from .motion import AUTO, METHODS, choose_method, default_chart_stepper
 
 __all__ = ["CarriedMotion", "JacobiFieldMotion", "LogResult", "TransportedVectors", "distance", "exp",
            "jacobi_field", "log", "parallel_transport", "tangent_basis"]
@@ -178,8 +176,8 @@ def _solve_in_charts(chain: Chain, x0: NDArray, v0: NDArray, T: float, term: Car
         return solve_carried(system, x0, v0, T, [term], precision=precision,
                              **{k: v for k, v in options.items() if k != "q_out"})
     velocity = ConstrainedVelocity(system)
-    stepper = SundmanStepper(ChainTimeFactor(chain), tol=precision.tol, velocity=velocity,
-                             terms=(ChartCarried(term, velocity),))
+    options = dict(options)  # the stepper takes its compile option out
+    stepper = default_chart_stepper(chain, precision.tol, velocity, options, terms=(ChartCarried(term, velocity),))
     solution = solve_chart_exp_ode(chain.metric(), x0, v0, T, stepper=stepper, start=PROJECTED_START,
                                    precision=dataclasses.replace(precision, tol=None), **options)
     carried = CarriedSolution(solution, (term,), ConstrainedGeometry(system, solution.fp_type))

@@ -184,21 +184,39 @@ def _hinge_solve(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t_final
 _TOLERANCE_ALIASES = ("rtol", "atol", "tolerance")
 
 
+#: The options of the charts' default stepper that ``free_motion`` takes for ``method="charts"`` (a ``stepper`` given
+#: holds its own): its compile option, as the hinge solver takes it.
+CHART_STEPPER_OPTIONS = ("compact_mode",)
+
+
 @cache
 def _method_options(method: str) -> tuple[str, ...]:
-    """The keyword options of the method's solver that ``free_motion`` passes on (read once: ``inspect`` costs tens
-    of microseconds, and a short call's fixed cost is counted)."""
+    """The options ``free_motion`` takes for the method: its solver's keyword options, passed on, and for the charts
+    :data:`CHART_STEPPER_OPTIONS` (read once: ``inspect`` costs tens of microseconds, and a short call's fixed cost
+    is counted)."""
     solver = solve_constrained if method == "hinges" else solve_chart_exp_ode
     parameters = inspect.signature(solver).parameters
-    return tuple(sorted(name for name, p in parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY
-                        and name not in ("metric", "progress", "carry", "start", "save", "precision")))
+    own = CHART_STEPPER_OPTIONS if method == "charts" else ()
+    return tuple(sorted([name for name, p in parameters.items() if p.kind is inspect.Parameter.KEYWORD_ONLY
+                         and name not in ("metric", "progress", "carry", "start", "save", "precision")] + list(own)))
+
+
+def default_chart_stepper(chain: Chain, tol: float | None, velocity: ConstrainedVelocity | None, options: dict,
+                          terms: tuple = ()) -> SundmanStepper:
+    """The charts' default stepper: Sundman's time ``dt = det M dtau`` (:class:`ChainTimeFactor`) with the state
+    ``velocity`` and the further ``terms``, at ``tol``; compiled with ``compact_mode``, taken out of ``options``
+    if given there, else compact (unrolled code steps 1.2-2.5x faster but compiles for 4-82 s at n = 3..8:
+    ``docs/methods.md``, "Compile options")."""
+    compact_mode = options.pop("compact_mode", None)
+    compile_options = {} if compact_mode is None else {"compact_mode": compact_mode}
+    return SundmanStepper(ChainTimeFactor(chain), tol=tol, velocity=velocity, terms=terms, **compile_options)
 
 
 def choose_method(chain: Chain, options: dict[str, Any]) -> str:
     """The method that ``method="auto"`` stands for, for ``chain`` and ``free_motion``'s other options.
 
-    The method whose solver alone takes an option given (``stepper``, ``form``, ``q_out``: the charts;
-    ``stabilisation``, ``rate``, ``compact_mode``, ...: the hinges); else ``"charts"``
+    The method that alone takes an option given (``stepper``, ``form``, ``q_out``: the charts;
+    ``stabilisation``, ``rate``, ...: the hinges; both take ``compact_mode``); else ``"charts"``
     where the chain has an atlas and is nearly stretched (:attr:`Chain.stretch_gap
     <linkage.chain.Chain.stretch_gap>` below :data:`~linkage.chain.STRETCHED_GAP`: the top of a sphere range,
     where the hinge method's velocities collect errors that no check sees); otherwise ``"hinges"``, the faster at every size and precision measured (7-15x
@@ -303,7 +321,10 @@ def free_motion(
         (``stepper``, ``q_out``, ``switching``, ``form``, ``max_switches``, ``throw``, ``budget``, ...; a
         ``stepper`` given takes its own tolerance, not ``precision.tol``), to
         :func:`manifold.constrained.solve_constrained` for ``"hinges"`` (``stabilisation``, ``rate``,
-        ``projection_interval``, ``compact_mode``, ``throw``, ``budget``).
+        ``projection_interval``, ``compact_mode``, ``throw``, ``budget``).  ``compact_mode`` is both methods'
+        compile option (``None``, the default: each method's measured default, :func:`default_chart_stepper` and
+        :func:`manifold.constrained.default_compact_mode`); ``compact_mode=False`` makes the charts' default stepper
+        straight-line code, which steps 1.2-2.5x faster and compiles once per machine for 4-82 s at n = 3..8.
     """
     if method not in (*METHODS, AUTO):
         raise ValueError(f"method must be one of {(*METHODS, AUTO)}, got {method!r}")
@@ -317,9 +338,13 @@ def free_motion(
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
     # velocity0 is tangent to start.tangent_tol (checked above): the chart solver's projection only removes rounding
     if kwargs.get("stepper") is None:  # Sundman's time: 13-44 % fewer steps (docs/methods.md)
-        kwargs["stepper"] = SundmanStepper(ChainTimeFactor(chain), tol=precision.tol,
-                                           velocity=_default_velocity(chain, kwargs))
+        kwargs["stepper"] = default_chart_stepper(chain, precision.tol, _default_velocity(chain, kwargs), kwargs)
         precision = dataclasses.replace(precision, tol=None)  # the stepper holds it
+    elif kwargs.get("compact_mode") is not None:
+        raise TypeError(f"free_motion(method='charts') takes compact_mode={kwargs['compact_mode']!r} for its default "
+                        f"stepper only: a stepper given holds its own compile options (stepper=SundmanStepper(..., "
+                        f"compact_mode=...))")
+    kwargs.pop("compact_mode", None)
     solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, precision=precision, save=save,
                                    start=PROJECTED_START, progress=progress, **kwargs)
     return ChainMotion(chain, solution)

@@ -137,14 +137,27 @@ def test_free_motion_uses_the_ambient_velocity_by_default_except_with_rod_densit
 
 def test_unrolled_chart_code_integrates_the_same_motion_as_the_compact_default():
     """``compact_mode=False`` (straight-line code, for long runs) and the default compact code of the chart path
-    solve the same motion through a chart switch."""
+    solve the same motion through a chart switch; ``free_motion``'s option builds the stepper a user would write."""
     chain = Chain(4, 2.7)
     h0, v0 = unit_speed_start(chain, [1.45, 0.3], [1.0, 0.2])
     default = free_motion(chain, h0, v0, 8.0, method="charts")
-    unrolled = free_motion(chain, h0, v0, 8.0, method="charts", stepper=SundmanStepper(
+    unrolled = free_motion(chain, h0, v0, 8.0, method="charts", compact_mode=False)
+    written = free_motion(chain, h0, v0, 8.0, method="charts", stepper=SundmanStepper(
         ChainTimeFactor(chain), compact_mode=False, velocity=ConstrainedVelocity(ChainSystem(chain))))
     assert default.solution.n_switches >= 1
     assert_same_motion(unrolled.solution, default.solution, 8.0)
+    assert np.array_equal(unrolled(8.0)[1], written(8.0)[1])
+    assert np.array_equal(free_motion(chain, h0, v0, 8.0, method="charts", compact_mode=True)(8.0)[1],
+                          default(8.0)[1])
+
+
+def test_a_compile_option_beside_a_stepper_is_refused():
+    """A stepper given holds its own compile options: ``compact_mode`` beside it would be silently ignored."""
+    chain = Chain(4, 2.7)
+    h0, v0 = unit_speed_start(chain, [1.45, 0.3], [1.0, 0.2])
+    with pytest.raises(TypeError, match=r"compact_mode=False for its default stepper only: a stepper given"):
+        free_motion(chain, h0, v0, 1.0, method="charts", compact_mode=False, stepper=SundmanStepper(
+            ChainTimeFactor(chain), velocity=ConstrainedVelocity(ChainSystem(chain))))
 
 
 def test_the_constraints_see_the_tangent_velocity_so_rounding_does_not_feed_back():

@@ -467,6 +467,10 @@ def test_transport_and_jacobi_fields_in_charts_agree_with_hinge_coordinates(wher
          geometry.jacobi_field(chain, h0, v0, 0 * W0[0], W0[0], 10.0, save=SaveAt(t_eval=ts))]
     assert np.abs(J[0].field - J[1].field).max() <= 1e-10 * max(1.0, np.abs(J[1].field).max())
     assert np.abs(J[0].field_derivative - J[1].field_derivative).max() <= 1e-10 * max(1.0, np.abs(J[1].field).max())
+    if where == "generic" and masses == "unit":  # the compile option reaches the stepper: compact is the default
+        compact = geometry.parallel_transport(chain, h0, v0, W0, 10.0, save=SaveAt(t_eval=ts), method="charts",
+                                              q_out=0.55, compact_mode=True)
+        assert np.array_equal(compact.vectors, charts.vectors)
 
 
 def test_the_default_method_is_free_motion_s():

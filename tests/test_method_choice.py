@@ -23,7 +23,9 @@ from manifold.budget import Budget
     (Chain([1.0, 5.0, 1.2, 0.9], 1.905), {}, "charts"),  # a link dominant, nearly stretched: gap 5e-3 of 9.9
     (Chain([1.0, 5.0, 1.2, 0.9], 2.5), {}, "hinges"),  # a link dominant, not stretched
     (Chain(4, 3.0), {"stepper": TaylorStepper()}, "charts"),  # only the chart solver takes a stepper
-    (Chain(4, 4 - 1e-4), {"compact_mode": True}, "hinges"),  # only the hinge solver takes compact_mode
+    (Chain(4, 4 - 1e-4), {"rate": 2.0}, "hinges"),  # only the hinge solver takes a Baumgarte rate
+    (Chain(4, 4 - 1e-4), {"compact_mode": True}, "charts"),  # both take compact_mode: the chain decides
+    (Chain(4, 3.0), {"compact_mode": False}, "hinges"),
     (Chain(4, 3.0), {"throw": False, "budget": Budget()}, "hinges"),  # both take these
 ])
 def test_the_method_that_auto_stands_for(chain, options, expected):
