@@ -62,3 +62,16 @@ def test_each_precision_conserves_energy_to_its_own_roundoff():
     assert [r["precision"] for r in rows] == ["float64", "long double", "real128", "real 113 bits"]
     for r in rows:
         assert r["energy_error"] <= 1e3 * unit_roundoff(fp_of[r["precision"]]), r
+
+
+def test_a_rewrite_of_the_page_keeps_the_sections_other_runs_wrote(tmp_path):
+    """``benchmarks.peers --markdown`` writes its section, and a run on a second machine is pasted by hand: the
+    study's rewrite of ``benchmarks.md`` keeps both, in their order, word for word."""
+    from benchmarks.study.report import KEPT_SECTIONS, write
+
+    kept = "".join(f"{heading}\n\nwhat {k} said\n\n" for k, heading in enumerate(KEPT_SECTIONS))
+    (tmp_path / "benchmarks.md").write_text("# an older study\n\n## Conclusions\n\nold\n\n" + kept)
+    page = write({"mode": "quick", "cores": 2, "work_precision": []}, tmp_path).read_text()
+    assert "an older study" not in page and "old\n" not in page
+    assert page[page.index(KEPT_SECTIONS[0]):].rstrip("\n") == kept.rstrip("\n")
+    assert "## The same peers on a second machine" in KEPT_SECTIONS

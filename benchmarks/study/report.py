@@ -18,7 +18,8 @@ from .experiments import speed_ratio_at_equal_error  # noqa: E402
 
 #: Sections of ``benchmarks.md`` that other scripts write, kept when the study rewrites the page.
 PEERS_SECTION = "## Against the strongest peers"  # written by benchmarks.peers
-KEPT_SECTIONS = (PEERS_SECTION,)
+SECOND_MACHINE_SECTION = "## The same peers on a second machine"  # benchmarks.peers runs elsewhere, by hand
+KEPT_SECTIONS = (PEERS_SECTION, SECOND_MACHINE_SECTION)
 
 OURS = "atlas Taylor (ours)"
 
@@ -240,7 +241,7 @@ def write(results: dict, out: Path) -> Path:
         parts += ["## Conclusions\n", results["conclusions"], ""]
     page = out / "benchmarks.md"
     text = "\n".join(parts)
-    if page.is_file():  # sections other scripts write (benchmarks.peers) are kept
+    if page.is_file():  # sections other scripts write (benchmarks.peers), or runs elsewhere, are kept
         for heading in KEPT_SECTIONS:
             kept = section(page.read_text(), heading)
             if kept is not None:
