@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+from collections.abc import Sequence
 from functools import cache, cached_property
 from pathlib import Path
 from typing import Any
@@ -28,6 +29,7 @@ from manifold.options import (DEFAULT_PRECISION, DEFAULT_SAVE, DEFAULT_START, PR
                               StartCheck, check_group, takes_option_groups)
 from manifold.progress import ProgressArgument
 from manifold.sundman import SundmanStepper
+from manifold.terms import Term
 
 from .chain import STRETCHED_GAP, Chain
 from .constraints import ChainSystem, chain_system, start_arguments, start_state
@@ -35,8 +37,8 @@ from .ensemble import EnsembleMotion, free_motions
 from .lyapunov import lyapunov_exponent, lyapunov_exponents
 from .time_factor import ChainTimeFactor
 
-__all__ = ["AUTO", "METHODS", "ChainMotion", "EnsembleMotion", "choose_method", "free_motion", "free_motions",
-           "lyapunov_exponent", "lyapunov_exponents"]
+__all__ = ["AUTO", "CHART_STEPPER_OPTIONS", "METHODS", "ChainMotion", "EnsembleMotion", "choose_method",
+           "default_chart_stepper", "free_motion", "free_motions", "lyapunov_exponent", "lyapunov_exponents"]
 
 
 class ChainMotion:
@@ -185,7 +187,7 @@ _TOLERANCE_ALIASES = ("rtol", "atol", "tolerance")
 
 
 #: The options of the charts' default stepper that ``free_motion`` takes for ``method="charts"`` (a ``stepper`` given
-#: holds its own): its compile option, as the hinge solver takes it.
+#: holds its own): its compile option, which the hinge solver takes too.
 CHART_STEPPER_OPTIONS = ("compact_mode",)
 
 
@@ -201,13 +203,37 @@ def _method_options(method: str) -> tuple[str, ...]:
                          and name not in ("metric", "progress", "carry", "start", "save", "precision")] + list(own)))
 
 
-def default_chart_stepper(chain: Chain, tol: float | None, velocity: ConstrainedVelocity | None, options: dict,
-                          terms: tuple = ()) -> SundmanStepper:
-    """The charts' default stepper: Sundman's time ``dt = det M dtau`` (:class:`ChainTimeFactor`) with the state
-    ``velocity`` and the further ``terms``, at ``tol``; compiled with ``compact_mode``, taken out of ``options``
-    if given there, else compact (unrolled code steps 1.2-2.5x faster but compiles for 4-82 s at n = 3..8:
-    ``docs/methods.md``, "Compile options")."""
-    compact_mode = options.pop("compact_mode", None)
+def default_chart_stepper(chain: Chain, tol: float | None, velocity: ConstrainedVelocity | None,
+                          compact_mode: bool | None = None, terms: Sequence[Term] = ()) -> SundmanStepper:
+    """The chart method's default stepper: Sundman's time ``dt = det M dtau`` (13-44 % fewer steps).
+
+    Parameters
+    ----------
+    chain
+        The chain, whose :class:`~linkage.time_factor.ChainTimeFactor` sets the time.
+    tol
+        heyoka's tolerance (``None``: the default of the working precision).
+    velocity
+        The state term: a :class:`~manifold.ambient_velocity.ConstrainedVelocity`, the state ``(a, J c)``, or
+        ``None``, the state ``(a, c)``.
+    compact_mode
+        heyoka's compile option; ``None`` (default) or ``True``: compact code; ``False``: straight-line code, which
+        steps 1.2-2.5x faster in the state ``(a, J c)`` and compiles for 4-82 s at n = 3..8, once per machine,
+        tolerance and direction (``docs/methods.md``, "Compile options").
+    terms
+        Further equation terms (carried quantities), as :class:`~manifold.steppers.TaylorStepper` takes them.
+
+    Raises
+    ------
+    ValueError
+        ``compact_mode=False`` in the state ``(a, c)``, whose unrolled code, with the chart's second derivatives,
+        compiled for 185 s at n = 3 and had not finished after 900 s at n = 4.
+    """
+    if compact_mode is False and velocity is None:
+        raise ValueError("compact_mode=False would compile the chart state (a, c), which free_motion takes with rod "
+                         "densities or a form= given, unrolled: 185 s at n = 3 and over 900 s at n = 4; leave "
+                         "compact_mode at its default, or give stepper=SundmanStepper(ChainTimeFactor(chain), "
+                         "compact_mode=False) to pay that")
     compile_options = {} if compact_mode is None else {"compact_mode": compact_mode}
     return SundmanStepper(ChainTimeFactor(chain), tol=tol, velocity=velocity, terms=terms, **compile_options)
 
@@ -322,9 +348,10 @@ def free_motion(
         ``stepper`` given takes its own tolerance, not ``precision.tol``), to
         :func:`manifold.constrained.solve_constrained` for ``"hinges"`` (``stabilisation``, ``rate``,
         ``projection_interval``, ``compact_mode``, ``throw``, ``budget``).  ``compact_mode`` is both methods'
-        compile option (``None``, the default: each method's measured default, :func:`default_chart_stepper` and
-        :func:`manifold.constrained.default_compact_mode`); ``compact_mode=False`` makes the charts' default stepper
-        straight-line code, which steps 1.2-2.5x faster and compiles once per machine for 4-82 s at n = 3..8.
+        compile option (``None``, the default: compact for the charts, :func:`~linkage.motion.default_chart_stepper`;
+        for the hinges :func:`manifold.constrained.default_compact_mode`); ``compact_mode=False`` makes the charts'
+        default stepper straight-line code, which steps 1.2-2.5x faster and compiles once per machine, tolerance
+        and direction for 4-82 s at n = 3..8 (not in the state ``(a, c)``: ``ValueError``).
     """
     if method not in (*METHODS, AUTO):
         raise ValueError(f"method must be one of {(*METHODS, AUTO)}, got {method!r}")
@@ -337,14 +364,14 @@ def free_motion(
                                                save=save, progress=progress, **kwargs))
     _, x0, v0, t_final = start_state(chain, hinges0, velocity0, t_final, start)
     # velocity0 is tangent to start.tangent_tol (checked above): the chart solver's projection only removes rounding
-    if kwargs.get("stepper") is None:  # Sundman's time: 13-44 % fewer steps (docs/methods.md)
-        kwargs["stepper"] = default_chart_stepper(chain, precision.tol, _default_velocity(chain, kwargs), kwargs)
+    compact_mode, stepper = kwargs.pop("compact_mode", None), kwargs.get("stepper")
+    if stepper is None:  # Sundman's time: 13-44 % fewer steps (docs/methods.md)
+        kwargs["stepper"] = default_chart_stepper(chain, precision.tol, _default_velocity(chain, kwargs), compact_mode)
         precision = dataclasses.replace(precision, tol=None)  # the stepper holds it
-    elif kwargs.get("compact_mode") is not None:
-        raise TypeError(f"free_motion(method='charts') takes compact_mode={kwargs['compact_mode']!r} for its default "
-                        f"stepper only: a stepper given holds its own compile options (stepper=SundmanStepper(..., "
+    elif compact_mode is not None:
+        raise TypeError(f"free_motion(method='charts') takes compact_mode={compact_mode!r} for its default stepper "
+                        f"only: the stepper given holds its own compile options ({type(stepper).__name__}(..., "
                         f"compact_mode=...))")
-    kwargs.pop("compact_mode", None)
     solution = solve_chart_exp_ode(chain.metric(), x0, v0, t_final, precision=precision, save=save,
                                    start=PROJECTED_START, progress=progress, **kwargs)
     return ChainMotion(chain, solution)

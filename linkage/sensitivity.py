@@ -104,7 +104,7 @@ def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float
     threshold
         Warn above this estimated relative error (``> 0``; default :data:`DEFAULT_THRESHOLD`).
     **options
-        Passed to :func:`linkage.geometry.jacobi_field` (``throw``, ``rate``, ...).
+        Passed to :func:`linkage.geometry.jacobi_field` (``throw``, ``rate``, ``compact_mode``, ...).
         The fields' invariants are not checked (they lose digits with the growth they measure); the geodesic's
         energy and rods are.
 

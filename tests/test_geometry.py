@@ -467,10 +467,39 @@ def test_transport_and_jacobi_fields_in_charts_agree_with_hinge_coordinates(wher
          geometry.jacobi_field(chain, h0, v0, 0 * W0[0], W0[0], 10.0, save=SaveAt(t_eval=ts))]
     assert np.abs(J[0].field - J[1].field).max() <= 1e-10 * max(1.0, np.abs(J[1].field).max())
     assert np.abs(J[0].field_derivative - J[1].field_derivative).max() <= 1e-10 * max(1.0, np.abs(J[1].field).max())
-    if where == "generic" and masses == "unit":  # the compile option reaches the stepper: compact is the default
-        compact = geometry.parallel_transport(chain, h0, v0, W0, 10.0, save=SaveAt(t_eval=ts), method="charts",
-                                              q_out=0.55, compact_mode=True)
-        assert np.array_equal(compact.vectors, charts.vectors)
+
+
+class _Stop(Exception):
+    """Raised by a spy in place of a solve: what it was given is all a test needs."""
+
+
+def test_the_compile_option_reaches_the_chart_stepper_and_not_the_hinge_solver_at_rest(monkeypatch):
+    """``compact_mode`` with ``method="charts"`` compiles the charts' stepper so (nothing is compiled here: spies
+    stand in for the solvers); a start at rest has no chart motion and runs the hinge solver, which keeps its own
+    default for carried terms (compact: unrolled, a Jacobi field compiled for 20 s at n = 4)."""
+    chain = Chain(4, 2.7)
+    rng = np.random.default_rng(5)
+    h0 = sample_starts(chain, 1, 0.5, rng)[0][0]
+    v0, W0 = _unit(chain, _random_tangent(chain, h0, rng)), _random_tangent(chain, h0, rng)
+    seen: dict = {}
+
+    def chart_solve(*args, stepper, **kwargs):
+        seen["stepper"], seen["chart options"] = stepper, kwargs
+        raise _Stop
+
+    def carried_solve(*args, **kwargs):
+        seen["carried options"] = kwargs
+        raise _Stop
+
+    monkeypatch.setattr(geometry, "solve_chart_exp_ode", chart_solve)
+    monkeypatch.setattr(geometry, "solve_carried", carried_solve)
+    for compact_mode in (False, True):
+        with pytest.raises(_Stop):
+            geometry.parallel_transport(chain, h0, v0, W0, 1.0, method="charts", compact_mode=compact_mode)
+        assert seen["stepper"].compact_mode is compact_mode and "compact_mode" not in seen["chart options"]
+    with pytest.raises(_Stop):
+        geometry.jacobi_field(chain, h0, 0 * v0, 0 * W0, W0, 1.0, method="charts", compact_mode=False)
+    assert "compact_mode" not in seen["carried options"]
 
 
 def test_the_default_method_is_free_motion_s():
