@@ -175,7 +175,7 @@ def lyapunov_spectrum(
     deviations: str = "perpendicular",
     precision: Precision = DEFAULT_PRECISION,
     rate: float = 1.0,
-    compact_mode: bool = True,
+    compact_mode: bool | None = None,
     seed: int = 0,
     throw: bool = True,
     budget: Budget = LYAPUNOV_BUDGET,
@@ -206,9 +206,9 @@ def lyapunov_spectrum(
     rate
         The Baumgarte rate, as in :func:`~manifold.constrained.solve_constrained`.
     compact_mode
-        heyoka's compact mode for the variational system (``k`` times more
-        equations: compact mode compiles it in seconds, once per ``k`` and
-        system; heyoka caches it on disk).
+        heyoka's compact mode for the variational system; ``None`` (default, as every solver's compile option
+        reads it: the measured default) is compact (``k`` times more equations: compact mode compiles it in
+        seconds, once per ``k`` and system; heyoka caches it on disk).
     seed
         Seed of the random initial deviations.
     throw
@@ -234,7 +234,8 @@ def lyapunov_spectrum(
     interval = check_real("interval", interval, positive=True)
     tol = float64_precision(precision).tol
     rate = check_real("rate", rate, positive=True)
-    compact_mode, throw = check_bool("compact_mode", compact_mode), check_bool("throw", throw)
+    compact_mode = check_bool("compact_mode", True if compact_mode is None else compact_mode)
+    throw = check_bool("throw", throw)
     if deviations not in DEVIATIONS:
         raise ValueError(f"deviations must be one of {DEVIATIONS}, got {deviations!r}")
     N, m = system.ambient_dim, system.n_constraints

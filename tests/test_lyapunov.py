@@ -182,6 +182,17 @@ def test_ensemble_of_exponents_equals_single_calls():
         assert np.array_equal(one.history, r.history)
 
 
+def test_the_compile_option_reads_none_as_its_default_as_every_solver_does():
+    """``compact_mode=None`` is the default everywhere (the free motions' and the carried solves' too); ``False``
+    and a non-boolean are still told apart from it."""
+    chain = Chain(4, 2.6)
+    h, v = unit_speed_start(chain, [0.3, 0.5], [1.0, -0.4])
+    default = lyapunov_exponent(chain, h, v, 10.0, k=2)
+    assert np.array_equal(lyapunov_exponent(chain, h, v, 10.0, k=2, compact_mode=None).history, default.history)
+    with pytest.raises(TypeError, match="compact_mode must be True or False"):
+        lyapunov_exponent(chain, h, v, 10.0, k=2, compact_mode=0)
+
+
 def test_convergence_plot_draws_the_history():
     import matplotlib
 
