@@ -43,7 +43,8 @@ from manifold.validation import check_positive_int, check_real
 from .chain import Chain
 from .diagonal_path import DiagonalPath
 from .constraints import ChainSystem, HingeConstraints, HingeStart, start_state
-from .motion import AUTO, CHART_STEPPER_OPTIONS, METHODS, choose_method, default_chart_stepper
+from .motion import (AUTO, CHART_STEPPER_OPTIONS, METHODS, check_method_options, choose_method,
+                     default_chart_stepper)
 
 __all__ = ["CarriedMotion", "JacobiFieldMotion", "LogResult", "TransportedVectors", "distance", "exp",
            "jacobi_field", "log", "parallel_transport", "tangent_basis"]
@@ -149,12 +150,14 @@ def checked_start(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: flo
 
 
 def _solve(start: HingeStart, term: CarriedTerm, grid: NDArray | None, precision: Precision, method: str,
-           options: dict[str, Any]) -> tuple[CarriedSolution, NDArray]:
-    """Integrate from a checked start with ``term`` carried, by ``method``; the solution and its sample times."""
+           options: dict[str, Any], caller: str) -> tuple[CarriedSolution, NDArray]:
+    """Integrate from a checked start with ``term`` carried, by ``method``; the solution and its sample times.
+    ``caller`` is the public function's name, for an error naming an option the method does not take."""
     precision = check_group("precision", precision, Precision)
     chain, x0, v0, T = start.constraints.chain, start.x0, start.v0, start.t_final
     if method == AUTO:
         method = choose_method(chain, options)
+    check_method_options(method, options, caller, also=("progress",))
     if method == "hinges":
         carried = solve_carried(ChainSystem(chain), x0, v0, T, [term], precision=precision, **options)
     else:
@@ -280,7 +283,8 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
     """
     hinge_start, grid = checked_start(chain, hinges0, velocity0, T, save, start, method)
     rows, single = _tangent_vectors(hinge_start.constraints, hinge_start.x0, vectors0, "vectors0", start)
-    carried, times = _solve(hinge_start, ParallelTransport(rows), grid, precision, method, options)
+    carried, times = _solve(hinge_start, ParallelTransport(rows), grid, precision, method, options,
+                            "parallel_transport")
     return TransportedVectors(chain, carried, times, single)
 
 
@@ -316,15 +320,16 @@ def jacobi_field(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, field0:
 
 def jacobi_field_from(hinge_start: HingeStart, field0: ArrayLike, derivative0: ArrayLike, grid: NDArray | None,
                       precision: Precision, method: str, start: StartCheck, checked: bool,
-                      options: dict[str, Any]) -> JacobiFieldMotion:
+                      options: dict[str, Any], caller: str = "jacobi_field") -> JacobiFieldMotion:
     """:func:`jacobi_field` from a start that :func:`checked_start` has checked (with its grid, or ``None``): the
-    fields are checked for tangency to ``start.tangent_tol``, the start is not checked again."""
+    fields are checked for tangency to ``start.tangent_tol``, the start is not checked again; ``caller``, the
+    public function called, is named in an error about an option."""
     J, single = _tangent_vectors(hinge_start.constraints, hinge_start.x0, field0, "field0", start)
     U, _ = _tangent_vectors(hinge_start.constraints, hinge_start.x0, derivative0, "derivative0", start)
     if J.shape != U.shape:
         raise ValueError(f"field0 and derivative0 must have one shape, got {np.shape(field0)} and "
                          f"{np.shape(derivative0)}")
-    carried, times = _solve(hinge_start, JacobiField(J, U, checked), grid, precision, method, options)
+    carried, times = _solve(hinge_start, JacobiField(J, U, checked), grid, precision, method, options, caller)
     return JacobiFieldMotion(hinge_start.constraints.chain, carried, times, single)
 
 

@@ -37,8 +37,8 @@ from .ensemble import EnsembleMotion, free_motions
 from .lyapunov import lyapunov_exponent, lyapunov_exponents
 from .time_factor import ChainTimeFactor
 
-__all__ = ["AUTO", "CHART_STEPPER_OPTIONS", "METHODS", "ChainMotion", "EnsembleMotion", "choose_method",
-           "default_chart_stepper", "free_motion", "free_motions", "lyapunov_exponent", "lyapunov_exponents"]
+__all__ = ["AUTO", "CHART_STEPPER_OPTIONS", "METHODS", "ChainMotion", "EnsembleMotion", "check_method_options",
+           "choose_method", "default_chart_stepper", "free_motion", "free_motions", "lyapunov_exponent", "lyapunov_exponents"]
 
 
 class ChainMotion:
@@ -257,13 +257,15 @@ def choose_method(chain: Chain, options: dict[str, Any]) -> str:
     return "charts" if chain.stretch_gap < STRETCHED_GAP and chain.has_atlas else "hinges"
 
 
-def _check_options(method: str, options: dict[str, Any]) -> None:
-    """``TypeError`` naming an option that the method's solver does not take, with the options it does take."""
-    taken = _method_options(method)
+def check_method_options(method: str, options: dict[str, Any], function: str, also: tuple[str, ...] = ()) -> None:
+    """``TypeError`` naming an option given to ``function`` that ``method`` does not take, with the options it does
+    take: those ``free_motion`` passes on for the method (its solver's keyword options, and for the charts
+    :data:`CHART_STEPPER_OPTIONS`) and ``also``."""
+    taken = tuple(sorted((*_method_options(method), *also)))
     for name in options:
         if name not in taken:
             hint = "; the tolerance is precision=Precision(tol=...)" if name in _TOLERANCE_ALIASES else ""
-            raise TypeError(f"free_motion(method={method!r}) does not take {name}={options[name]!r}{hint} "
+            raise TypeError(f"{function}(method={method!r}) does not take {name}={options[name]!r}{hint} "
                             f"(its options: {', '.join(taken)})")
 
 
@@ -358,7 +360,7 @@ def free_motion(
     precision, save = check_group("precision", precision, Precision), check_group("save", save, SaveAt)
     if method == AUTO:
         method = choose_method(chain, kwargs)
-    _check_options(method, kwargs)
+    check_method_options(method, kwargs, "free_motion")
     if method == "hinges":
         return ChainMotion(chain, _hinge_solve(chain, hinges0, velocity0, t_final, start, precision=precision,
                                                save=save, progress=progress, **kwargs))

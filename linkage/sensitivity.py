@@ -129,7 +129,7 @@ def sensitivity(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, T: float
     tau = 1.0 / (np.sqrt(2 * energy) * speed_scale(ChainSystem(chain))) if energy > 0 else abs(float(T))
     zeros = np.zeros_like(basis)
     fields = jacobi_field_from(hinge_start, np.concatenate([basis, zeros]), np.concatenate([zeros, basis / tau]),
-                               grid, precision, method, start, False, options)
+                               grid, precision, method, start, False, options, "sensitivity")
     solution = fields.carried.solution
     R = np.linalg.cholesky(chain.ambient_metric).T  # |x|_K = |R x|
     J = chain.to_point(fields.field) @ R.T  # (times, 2k, N), Euclidean after R

@@ -23,6 +23,7 @@ from linkage.constraints import ChainSystem, HingeConstraints
 from linkage.diagonal_path import DifferentComponentsError
 from linkage.motion import choose_method, free_motion
 from linkage.sampling import sample_starts
+from linkage.sensitivity import sensitivity
 from manifold import GeodesicIntegrationError, Precision, SaveAt
 from manifold.carried import solve_carried
 from manifold.jacobi import JacobiField
@@ -339,6 +340,16 @@ def test_bad_inputs_are_refused_by_name():
         geometry.exp(chain, H[0], V[0], float("nan"))
     with pytest.raises(TypeError, match="exp does not take save="):
         geometry.exp(chain, H[0], V[0], 1.0, save=SaveAt(dense=True))
+    # an option the method does not take is named with the function and the method, before anything is solved
+    with pytest.raises(TypeError, match=r"parallel_transport\(method='charts'\) does not take rate=2.0 \(its options: "
+                                        r"budget, chart, compact_mode, .*q_out"):
+        geometry.parallel_transport(chain, H[0], V[0], V[0], 1.0, method="charts", rate=2.0)
+    with pytest.raises(TypeError, match=r"jacobi_field\(method='hinges'\) does not take q_out=0.5 \(its options: "
+                                        r"budget, compact_mode, progress, projection_interval, rate"):
+        geometry.jacobi_field(chain, H[0], V[0], 0 * V[0], V[0], 1.0, method="hinges", q_out=0.5)
+    with pytest.raises(TypeError, match=r"sensitivity\(method='hinges'\) does not take rtol=1e-08; the tolerance is "
+                                        r"precision=Precision\(tol=...\)"):
+        sensitivity(chain, H[0], V[0], 1.0, rtol=1e-8)
     with pytest.raises(ValueError, match="max_iterations"):
         geometry.log(chain, H[0], H[0], max_iterations=0)
     with pytest.raises(ValueError, match="velocity_guess must have shape"):
