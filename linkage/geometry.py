@@ -222,6 +222,7 @@ def exp(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, t: float = 1.0, 
     for name in ("save", "carry"):
         if name in options:
             raise TypeError(f"exp does not take {name}= (it returns the end point; see parallel_transport for a path)")
+    check_method_options("hinges", options, "exp", also=("progress",))
     _, x0, v0, t = start_state(chain, hinges0, velocity0, check_real("t", t, nonzero=True), start)
     sol = solve_constrained(ChainSystem(chain), x0, v0, t, precision=precision, save=SaveAt(dense=False), **options)
     return chain.from_point(sol.end_state()[0].astype(float))

@@ -341,6 +341,8 @@ def test_bad_inputs_are_refused_by_name():
     with pytest.raises(TypeError, match="exp does not take save="):
         geometry.exp(chain, H[0], V[0], 1.0, save=SaveAt(dense=True))
     # an option the method does not take is named with the function and the method, before anything is solved
+    with pytest.raises(TypeError, match=r"exp\(method='hinges'\) does not take method='charts' \(its options: "):
+        geometry.exp(chain, H[0], V[0], 1.0, method="charts")
     with pytest.raises(TypeError, match=r"parallel_transport\(method='charts'\) does not take rate=2.0 \(its options: "
                                         r"budget, chart, compact_mode, .*q_out"):
         geometry.parallel_transport(chain, H[0], V[0], V[0], 1.0, method="charts", rate=2.0)
