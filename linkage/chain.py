@@ -367,8 +367,11 @@ class Chain:
         """
         h = np.asarray(values)
         if h.ndim == 0 or h.shape[-1] != self.n - 1:
+            interleaved = h.ndim > 0 and h.shape[-1] == 2 * (self.n - 1) and h.dtype.kind in "fiu"
+            hint = (" (a real array of 2 (n - 1) entries is an interleaved point: use Chain.from_point)"
+                    if interleaved else "")
             raise ConfigurationError(f"{what}: expected n - 1 = {self.n - 1} complex hinges along its last axis, "
-                                     f"got shape {h.shape}")
+                                     f"got shape {h.shape}{hint}")
         if h.dtype.kind != "c":
             raise ConfigurationError(
                 f"{what} must hold complex hinges p_j = x_j + i y_j, got an array of dtype {h.dtype} "

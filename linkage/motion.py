@@ -38,7 +38,8 @@ from .lyapunov import lyapunov_exponent, lyapunov_exponents
 from .time_factor import ChainTimeFactor
 
 __all__ = ["AUTO", "CHART_STEPPER_OPTIONS", "METHODS", "ChainMotion", "EnsembleMotion", "check_method_options",
-           "choose_method", "default_chart_stepper", "free_motion", "free_motions", "lyapunov_exponent", "lyapunov_exponents"]
+           "choose_method", "default_chart_stepper", "free_motion", "free_motions", "lyapunov_exponent",
+           "lyapunov_exponents"]
 
 
 class ChainMotion:
@@ -46,7 +47,8 @@ class ChainMotion:
 
     ``motion(t)`` evaluates complex hinges and velocities at any times of the
     dense output; ``times``, ``hinges``, ``velocities`` are the recorded
-    states (the ``t_eval`` grid if one was asked for, else every step).
+    states (the ``t_eval`` grid if one was asked for, else every step, read from the dense output);
+    ``end_hinges``, ``end_velocities`` where the solve stopped, with or without dense output.
 
     Attributes
     ----------
@@ -71,6 +73,18 @@ class ChainMotion:
         p, v = self.solution(t)
         return self.chain.from_point(p.astype(float)), self.chain.from_point(v.astype(float))
 
+    @property
+    def end_hinges(self) -> NDArray:
+        """Complex hinges where the solve stopped (at ``t_final``, or where it failed), rounded to complex128; kept
+        with any :class:`~manifold.SaveAt`, ``SaveAt(dense=False)`` included (as
+        :attr:`~linkage.ensemble.EnsembleMotion.end_hinges`)."""
+        return self.chain.from_point(self.solution.end_state()[0].astype(float))
+
+    @property
+    def end_velocities(self) -> NDArray:
+        """Complex hinge velocities where the solve stopped (as :attr:`end_hinges`)."""
+        return self.chain.from_point(self.solution.end_state()[1].astype(float))
+
     @cached_property
     def _recorded(self) -> tuple[NDArray, NDArray, NDArray]:
         sol = self.solution
@@ -82,7 +96,8 @@ class ChainMotion:
 
     @property
     def times(self) -> NDArray:
-        """Times of the recorded states: the ``t_eval`` grid, else every step."""
+        """Times of the recorded states: the ``t_eval`` grid, else every step (from the dense output: without it and
+        without a grid, ``ValueError``; :attr:`end_hinges` needs neither)."""
         return self._recorded[0]
 
     @property

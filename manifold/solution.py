@@ -397,7 +397,8 @@ class GeodesicSolution:
             raise ValueError(f"t = {ts[bad][:5]} lies outside the solution's time span [{lo}, {hi}]")
         if any(s.dense is None for s in self.segments):
             raise ValueError("the solution was computed with SaveAt(dense=False): no continuous output "
-                             "(use save=SaveAt(t_eval=...) to record a grid, or SaveAt(dense=True))")
+                             "(use save=SaveAt(t_eval=...) to record a grid, or SaveAt(dense=True); the state where "
+                             "the solve stopped needs neither: end_state())")
         sign = 1.0 if t1 >= t0 else -1.0
         ends = sign * np.array([float(s.t_end) for s in self.segments])
         # a time on a boundary belongs to the later segment: its start is the state after a switch or projection

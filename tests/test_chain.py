@@ -129,8 +129,11 @@ def test_as_hinges_takes_complex_hinges_only():
         np.testing.assert_array_equal(out, np.asarray(values).astype(complex))
     point = chain.to_point(h)  # the interleaved real form of the same hinges is refused, by name
     assert point.dtype.kind == "f"
-    with pytest.raises(ConfigurationError, match="2 complex hinges"):
+    with pytest.raises(ConfigurationError, match=r"2 complex hinges.*got shape \(4,\) \(a real array of 2 \(n - 1\) "
+                                                 r"entries is an interleaved point: use Chain.from_point\)"):
         chain.as_hinges(point, "velocity")
+    with pytest.raises(ConfigurationError, match=r"got shape \(5,\)$"):  # no such hint for another length
+        chain.as_hinges(np.zeros(5), "velocity")
     for real in (h.real, h.real.astype(int), [1.0, 1.0]):
         with pytest.raises(ConfigurationError, match=r"^velocity must hold complex hinges.*dtype.*from_point"):
             chain.as_hinges(real, "velocity")

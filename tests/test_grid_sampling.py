@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import heyoka as hy
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -82,3 +83,22 @@ def test_samples_in_real128():
     assert sampled.points.dtype == dense.points.dtype and sampled.n_steps == dense.n_steps
     assert np.abs(sampled.points - dense.points).max() <= 2.0**-100
     assert sampled.relative_energy_error <= 1e3 * 2.0**-113
+
+
+def test_the_end_state_is_kept_without_dense_output_or_grid():
+    """``end_hinges`` and ``end_velocities`` need no dense output: without it the solve ends where the dense one does
+    (the same steps), and both equal the dense output's value at ``T`` to rounding, for either method; the recorded
+    states, which do need it, say where the end state is."""
+    h0, v0 = unit_speed_start(CHAIN, [0.4, 0.3], [1.0, 0.5])
+    T = 6.0
+    for method in ("hinges", "charts"):
+        dense = free_motion(CHAIN, h0, v0, T, method=method)
+        bare = free_motion(CHAIN, h0, v0, T, method=method, save=SaveAt(dense=False))
+        assert np.array_equal(bare.end_hinges, dense.end_hinges)
+        assert np.array_equal(bare.end_velocities, dense.end_velocities)
+        at_T = dense(T)
+        assert np.abs(dense.end_hinges - at_T[0]).max() <= 1e-13
+        assert np.abs(dense.end_velocities - at_T[1]).max() <= 1e-13
+        assert np.abs(CHAIN.closure_residual(bare.end_hinges)) <= 1e-14
+        with pytest.raises(ValueError, match=r"SaveAt\(dense=False\): no continuous output .* end_state\(\)"):
+            bare.hinges
