@@ -273,9 +273,12 @@ def parallel_transport(chain: Chain, hinges0: ArrayLike, velocity0: ArrayLike, v
     **options
         Passed to :func:`manifold.carried.solve_carried` (``rate``, ``throw``, ``progress``, ...),
         or for ``"charts"`` to :func:`manifold.solve_chart_exp_ode` (``q_out``, ``throw``, ...); ``compact_mode``,
-        both methods' compile option, as in :func:`~linkage.motion.free_motion` (the charts': their stepper's; with a
-        term carried, unrolled chart code compiled for 53-60 s at n = 4, against 3 s compact, for a Jacobi field's
-        T = 20 call 1.4x faster).
+        both methods' compile option (the charts': their stepper's).  ``None`` (default) compiles compact for
+        either method, unlike :func:`~linkage.motion.free_motion`'s hinges, which unroll up to n = 12: with a term
+        carried unrolled code compiles far longer, once per machine, for faster calls.  Parallel transport with the
+        hinges at n = 5: 6.4 s cold against 0.45 s, a T = 200 call 1.25x faster; a Jacobi field at n = 4 on the
+        charts: 53-60 s against 3 s, a T = 20 call 1.4x faster.  ``compact_mode=False`` pays that for long or
+        repeated runs.
 
     Returns
     -------
