@@ -73,17 +73,23 @@ class ChainMotion:
         p, v = self.solution(t)
         return self.chain.from_point(p.astype(float)), self.chain.from_point(v.astype(float))
 
+    @cached_property
+    def _end(self) -> tuple[NDArray, NDArray]:
+        # end_state() maps a chart state to the hinges in a compiled call: once for both properties
+        p, v = self.solution.end_state()
+        return self.chain.from_point(p.astype(float)), self.chain.from_point(v.astype(float))
+
     @property
     def end_hinges(self) -> NDArray:
         """Complex hinges where the solve stopped (at ``t_final``, or where it failed), rounded to complex128; kept
         with any :class:`~manifold.SaveAt`, ``SaveAt(dense=False)`` included (as
         :attr:`~linkage.ensemble.EnsembleMotion.end_hinges`)."""
-        return self.chain.from_point(self.solution.end_state()[0].astype(float))
+        return self._end[0]
 
     @property
     def end_velocities(self) -> NDArray:
         """Complex hinge velocities where the solve stopped (as :attr:`end_hinges`)."""
-        return self.chain.from_point(self.solution.end_state()[1].astype(float))
+        return self._end[1]
 
     @cached_property
     def _recorded(self) -> tuple[NDArray, NDArray, NDArray]:
